@@ -1,0 +1,87 @@
+//! Errors and exit codes.
+//!
+//! Every failure a user can cause (a missing file, malformed TOML or URDF, a
+//! negative sigma, an unreachable viewpoint) is an [`Error::Input`] that names
+//! the file and what is wrong; the binary maps it to exit code 2. A failed check
+//! (a regression) is exit code 1. A panic is a bug.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// The crate's result type.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What went wrong, and whose fault it is.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// Bad input: the file (or `-` for the command line) and a message that says
+    /// what is wrong and, where it can, what to do.
+    #[error("{}: {message}", path.display())]
+    Input { path: PathBuf, message: String },
+    /// Bad command-line usage.
+    #[error("{0}")]
+    Usage(String),
+    /// Reading or writing a file failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A check ran and failed (a regression, an inconsistent covariance).
+    #[error("{0}")]
+    CheckFailed(String),
+}
+
+impl Error {
+    /// A bad-input error about `path`.
+    pub fn input(path: impl AsRef<Path>, message: impl fmt::Display) -> Self {
+        Error::Input {
+            path: path.as_ref().to_path_buf(),
+            message: message.to_string(),
+        }
+    }
+
+    /// An I/O error on `path`.
+    pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.as_ref().to_path_buf(),
+            source,
+        }
+    }
+
+    /// The process exit code: 1 for a failed check, 2 for anything the user
+    /// must fix (input, usage, files).
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::CheckFailed(_) => 1,
+            Error::Input { .. } | Error::Usage(_) | Error::Io { .. } => 2,
+        }
+    }
+
+    /// Prefixes the message of an input error with more context
+    /// (`"viewpoint 3: "`), keeping its file.
+    pub fn context(self, prefix: impl fmt::Display) -> Self {
+        match self {
+            Error::Input { path, message } => Error::Input {
+                path,
+                message: format!("{prefix}{message}"),
+            },
+            other => other,
+        }
+    }
+}
+
+/// Reads a whole text file, naming it on failure.
+pub fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => Error::input(path, "file not found"),
+        _ => Error::io(path, e),
+    })
+}
+
+/// Parses a TOML file into `T`, naming the file and the offending line on failure.
+pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = read_text(path)?;
+    toml::from_str(&text).map_err(|e| Error::input(path, format!("malformed TOML: {e}")))
+}

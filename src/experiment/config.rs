@@ -1,0 +1,280 @@
+//! The experiment file: what is simulated (scene, robot and mount, sensor,
+//! error profile, viewpoints, seed). Paths are relative to the experiment file.
+
+use crate::error::{read_toml, Error, Result};
+use crate::geometry::{Isometry3, Pose, Vector3};
+use crate::sim::ik::{self, IkOptions, IkTarget};
+use crate::sim::profile::ErrorProfile;
+use crate::sim::robot::{KinematicChain, Robot};
+use crate::sim::scene::Scene;
+use crate::sim::sensor::{Scanner, ScannerSpec};
+use nalgebra::Unit;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ExperimentFile {
+    name: Option<String>,
+    #[serde(default)]
+    description: String,
+    scene: PathBuf,
+    error_profile: PathBuf,
+    #[serde(default = "default_seed")]
+    seed: u64,
+    robot: MountSpec,
+    #[serde(default)]
+    world_from_scene: PoseSpec,
+    sensor: ScannerSpec,
+    #[serde(rename = "viewpoint", default)]
+    viewpoints: Vec<ViewpointSpec>,
+}
+
+fn default_seed() -> u64 {
+    1
+}
+
+fn default_base_link() -> String {
+    "base_link".into()
+}
+
+fn default_sensor_link() -> String {
+    "laser".into()
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MountSpec {
+    urdf: PathBuf,
+    #[serde(default = "default_base_link")]
+    base_link: String,
+    flange_link: String,
+    #[serde(default = "default_sensor_link")]
+    sensor_link: String,
+    #[serde(default)]
+    xyz: [f64; 3],
+    #[serde(default)]
+    rpy: [f64; 3],
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct PoseSpec {
+    #[serde(default)]
+    xyz: [f64; 3],
+    #[serde(default)]
+    rpy: [f64; 3],
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ViewpointSpec {
+    joints: Option<Vec<f64>>,
+    look_at: Option<[f64; 3]>,
+    distance: Option<f64>,
+    from: Option<[f64; 3]>,
+}
+
+/// A resolved viewpoint: a joint configuration within the limits.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Viewpoint {
+    /// How the file asked for it.
+    pub request: String,
+    /// Nominal joint values (rad, m).
+    pub joints: Vec<f64>,
+}
+
+/// A loaded and checked experiment.
+pub struct Experiment {
+    /// Its name (the results folder is `results/<name>/`).
+    pub name: String,
+    /// Free text.
+    pub description: String,
+    /// The experiment file.
+    pub source: PathBuf,
+    /// The run's seed.
+    pub seed: u64,
+    /// The workcell scene.
+    pub scene: Scene,
+    /// The robot.
+    pub robot: Robot,
+    /// `base_link -> flange_link`: the arm (T_rw = world_from_base · FK).
+    pub arm: KinematicChain,
+    /// `base_link -> sensor_link`, for inverse kinematics.
+    pub sensor_chain: KinematicChain,
+    /// Nominal `robot_from_camera` (T_cr): the URDF's flange → laser joints.
+    pub robot_from_camera: Pose,
+    /// Where the robot base stands in the world.
+    pub world_from_base: Isometry3,
+    /// Nominal `world_from_scene` (T_sw).
+    pub world_from_scene: Pose,
+    /// The scanner.
+    pub scanner: Scanner,
+    /// The error profile.
+    pub profile: ErrorProfile,
+    /// The viewpoints, resolved to joint configurations.
+    pub viewpoints: Vec<Viewpoint>,
+}
+
+impl Experiment {
+    /// Reads an experiment and everything it names, solves the look-at
+    /// viewpoints, and checks them. Every error names its file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let file: ExperimentFile = read_toml(path)?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let bad = |msg: String| Error::input(path, msg);
+        let scene = Scene::load(&dir.join(&file.scene))?;
+        let profile = ErrorProfile::load(&dir.join(&file.error_profile))?;
+        let robot = Robot::load(&dir.join(&file.robot.urdf))?;
+        let mount = &file.robot;
+        let arm = robot.chain(&mount.base_link, &mount.flange_link)?;
+        let sensor_chain = robot.chain(&mount.base_link, &mount.sensor_link)?;
+        let mount_chain = robot.chain(&mount.flange_link, &mount.sensor_link)?;
+        if mount_chain.dof() != 0 {
+            return Err(bad(format!(
+                "[robot] the joints between '{}' and '{}' must all be fixed: they are the sensor mount T_cr",
+                mount.flange_link, mount.sensor_link
+            )));
+        }
+        let robot_from_camera = Pose::from_isometry(&mount_chain.forward_unchecked(&[]));
+        if let crate::sim::profile::ArmError::Joints(s) = &profile.arm {
+            if s.len() != arm.dof() {
+                return Err(Error::input(
+                    &profile.source,
+                    format!(
+                        "[world_from_robot] joint_sigma has {} values, the arm '{}' has {} joints",
+                        s.len(),
+                        robot.name,
+                        arm.dof()
+                    ),
+                ));
+            }
+        }
+        let base = Pose::new(mount.xyz, mount.rpy);
+        let world_from_scene = Pose::new(file.world_from_scene.xyz, file.world_from_scene.rpy);
+        if !base.is_finite() || !world_from_scene.is_finite() {
+            return Err(bad(
+                "[robot] and [world_from_scene] poses must be finite".into()
+            ));
+        }
+        let scanner = file.sensor.build().map_err(bad)?;
+        if file.viewpoints.is_empty() {
+            return Err(bad("the experiment has no [[viewpoint]]".into()));
+        }
+        let mut experiment = Self {
+            name: file.name.unwrap_or_else(|| crate::sim::scene::stem(path)),
+            description: file.description,
+            source: path.to_path_buf(),
+            seed: file.seed,
+            scene,
+            robot,
+            arm,
+            sensor_chain,
+            robot_from_camera,
+            world_from_base: base.to_isometry(),
+            world_from_scene,
+            scanner,
+            profile,
+            viewpoints: Vec::new(),
+        };
+        for (index, spec) in file.viewpoints.iter().enumerate() {
+            let viewpoint = experiment
+                .resolve(index, spec)
+                .map_err(|e| e.context(format!("viewpoint {index}: ")))?;
+            experiment.viewpoints.push(viewpoint);
+        }
+        Ok(experiment)
+    }
+
+    /// The nominal `scene_from_camera` at a joint configuration.
+    pub fn nominal_scene_from_camera(&self, joints: &[f64]) -> Isometry3 {
+        self.world_from_scene.to_isometry().inverse()
+            * self.world_from_base
+            * self.sensor_chain.forward_unchecked(joints)
+    }
+
+    fn resolve(&self, index: usize, spec: &ViewpointSpec) -> Result<Viewpoint> {
+        let bad = |msg: String| Error::input(&self.source, msg);
+        let viewpoint = match (&spec.joints, spec.look_at) {
+            (Some(_), Some(_)) => return Err(bad("give `joints` or `look_at`, not both".into())),
+            (None, None) => {
+                return Err(bad(
+                    "give `joints = [..]` (radians) or `look_at = [x, y, z]`".into(),
+                ))
+            }
+            (Some(joints), None) => {
+                if spec.distance.is_some() || spec.from.is_some() {
+                    return Err(bad("`distance` and `from` go with `look_at`".into()));
+                }
+                self.arm
+                    .check(joints)
+                    .map_err(|e| e.context(format!("{}: ", self.source.display())))?;
+                Viewpoint {
+                    request: format!("joints {joints:?}"),
+                    joints: joints.clone(),
+                }
+            }
+            (None, Some(target)) => {
+                let distance = spec
+                    .distance
+                    .ok_or_else(|| bad("`look_at` needs `distance` (m)".into()))?;
+                let from = Vector3::from(spec.from.ok_or_else(|| {
+                    bad("`look_at` needs `from = [x, y, z]`, the direction from the target toward the sensor".into())
+                })?);
+                if !(distance.is_finite() && distance > 0.0 && target.iter().all(|v| v.is_finite()))
+                {
+                    return Err(bad(format!(
+                        "look_at {target:?} at distance {distance} is not a valid request"
+                    )));
+                }
+                if !(from.iter().all(|v| v.is_finite()) && from.norm() > 1e-9) {
+                    return Err(bad(format!(
+                        "`from` {:?} is not a direction",
+                        from.as_slice()
+                    )));
+                }
+                let request = format!(
+                    "look_at [{}, {}, {}] from [{}, {}, {}] at {distance} m",
+                    target[0], target[1], target[2], from.x, from.y, from.z
+                );
+                // Scene frame -> base frame, through the nominal placements.
+                let base_from_scene =
+                    self.world_from_base.inverse() * self.world_from_scene.to_isometry();
+                let from = from.normalize();
+                let goal = IkTarget::LookAt {
+                    position: (base_from_scene
+                        * nalgebra::Point3::from(Vector3::from(target) + from * distance))
+                    .coords,
+                    boresight: Unit::new_normalize(base_from_scene * -from),
+                };
+                let options = IkOptions {
+                    seed: index as u64,
+                    ..IkOptions::default()
+                };
+                let joints = ik::solve(&self.sensor_chain, &goal, None, &options).map_err(|f| {
+                    bad(format!(
+                        "{request} is unreachable for robot '{}': best position error {:.4} m \
+                         (orientation {:.4} rad) after {} restarts; move the target closer to the base \
+                         or change `distance`/`from`",
+                        self.robot.name, f.position_error, f.orientation_error, options.restarts
+                    ))
+                })?;
+                Viewpoint { request, joints }
+            }
+        };
+        let origin = nalgebra::Point3::from(
+            self.nominal_scene_from_camera(&viewpoint.joints)
+                .translation
+                .vector,
+        );
+        if let Some(object) = self.scene.object_containing(&origin) {
+            return Err(bad(format!(
+                "{}: the sensor origin {:?} is inside object '{}'",
+                viewpoint.request,
+                origin.coords.as_slice(),
+                self.scene.objects()[object].name
+            )));
+        }
+        Ok(viewpoint)
+    }
+}

@@ -1,0 +1,11 @@
+//! Experiments: the configuration schema, the simulated runs, and their files.
+
+mod config;
+mod scan_files;
+mod simulate;
+
+pub use config::{Experiment, Viewpoint};
+pub use scan_files::{
+    chain_file, default_scan_dir, read_ply, write_atomically, write_ply, write_scans,
+};
+pub use simulate::{simulate, RunTruth, SimulatedRun};

@@ -1,0 +1,372 @@
+//! Scan files a user can open: per viewpoint a CSV of beams, a PLY point cloud
+//! with the sensor origin, and the nominal chain in `sigmap propagate` format;
+//! the truth in a separate folder for scoring.
+
+use super::{Experiment, SimulatedRun};
+use crate::error::{Error, Result};
+use crate::geometry::{Isometry3, Matrix6, Pose};
+use crate::sim::scan::{BeamStatus, Scan};
+use crate::uncertainty::UncertainPose;
+use std::fmt::Write as _;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Writes into a fresh sibling folder, then moves it over `out`, so that an
+/// error leaves no half-written results (and the previous ones intact).
+pub fn write_atomically(out: &Path, fill: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let name = out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+    let staging = parent.join(format!(".{name}.partial-{}", std::process::id()));
+    if staging.exists() {
+        std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+    }
+    std::fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+    if let Err(e) = fill(&staging) {
+        let _ = std::fs::remove_dir_all(&staging);
+        return Err(e);
+    }
+    if out.exists() {
+        std::fs::remove_dir_all(out).map_err(|e| Error::io(out, e))?;
+    }
+    std::fs::rename(&staging, out).map_err(|e| Error::io(out, e))
+}
+
+fn create(path: &Path) -> Result<std::io::BufWriter<std::fs::File>> {
+    std::fs::File::create(path)
+        .map(|f| std::io::BufWriter::with_capacity(1 << 16, f))
+        .map_err(|e| Error::io(path, e))
+}
+
+fn put(path: &Path, text: &str) -> Result<()> {
+    std::fs::write(path, text).map_err(|e| Error::io(path, e))
+}
+
+fn finish(path: &Path, writer: std::io::BufWriter<std::fs::File>) -> Result<()> {
+    writer
+        .into_inner()
+        .map_err(|e| Error::io(path, e.into_error()))?
+        .sync_all()
+        .map_err(|e| Error::io(path, e))
+}
+
+/// `[a, b, c]` with shortest round-trip floats.
+fn list(values: &[f64]) -> String {
+    let items: Vec<String> = values.iter().map(|v| format!("{v:?}")).collect();
+    format!("[{}]", items.join(", "))
+}
+
+fn matrix6(m: &Matrix6) -> String {
+    let rows: Vec<String> = (0..6)
+        .map(|i| format!("  {}", list(&m.row(i).iter().copied().collect::<Vec<_>>())))
+        .collect();
+    format!("[\n{},\n]", rows.join(",\n"))
+}
+
+/// One `[[transform]]` of a chain file.
+fn transform_entry(out: &mut String, name: &str, pose: &UncertainPose, inverse: bool) {
+    let _ = writeln!(out, "[[transform]]\nname = \"{name}\"");
+    let _ = writeln!(
+        out,
+        "xyz = {}\nrpy = {}",
+        list(pose.mean.xyz.as_slice()),
+        list(pose.mean.rpy.as_slice())
+    );
+    if inverse {
+        let _ = writeln!(out, "inverse = true");
+    }
+    let _ = writeln!(out, "covariance = {}\n", matrix6(&pose.covariance));
+}
+
+/// The nominal chain of a scan in the `sigmap propagate` chain format
+/// (without its `[point]`: add one to propagate a measurement).
+pub fn chain_file(scan: &Scan) -> String {
+    let mut out = String::from(
+        "# X_scene = T_sw^-1 · T_rw · T_cr · X_camera (listed left to right); m, rad, m², rad².\n\
+         # Add a [point] (xyz = [..], covariance or sigma) to run `sigmap propagate` on it.\n\n",
+    );
+    transform_entry(
+        &mut out,
+        "world_from_scene",
+        &scan.chain.world_from_scene,
+        true,
+    );
+    transform_entry(
+        &mut out,
+        "world_from_robot",
+        &scan.chain.world_from_robot,
+        false,
+    );
+    transform_entry(
+        &mut out,
+        "robot_from_camera",
+        &scan.chain.robot_from_camera,
+        false,
+    );
+    out
+}
+
+fn pose_line(out: &mut String, name: &str, iso: &Isometry3) {
+    let pose = Pose::from_isometry(iso);
+    let _ = writeln!(
+        out,
+        "{name} = {{ xyz = {}, rpy = {} }}",
+        list(pose.xyz.as_slice()),
+        list(pose.rpy.as_slice())
+    );
+}
+
+/// Writes every file of a simulated run into `dir` (which must exist).
+pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> Result<()> {
+    let truth_dir = dir.join("truth");
+    std::fs::create_dir_all(&truth_dir).map_err(|e| Error::io(&truth_dir, e))?;
+    let scanner = &experiment.scanner;
+    let mut manifest = String::new();
+    let _ = writeln!(
+        manifest,
+        "# sigmap {} scan set; see README, \"Scan files\".",
+        env!("CARGO_PKG_VERSION")
+    );
+    let _ = writeln!(
+        manifest,
+        "experiment = \"{}\"\nseed = {}",
+        experiment.name, run.seed
+    );
+    let _ = writeln!(
+        manifest,
+        "scene = \"{}\"\nrobot = \"{}\"\nerror_profile = \"{}\"",
+        experiment.scene.name, experiment.robot.name, experiment.profile.name
+    );
+    let _ = writeln!(
+        manifest,
+        "viewpoints = {}\nbeams_per_viewpoint = {}",
+        run.scans.len(),
+        scanner.directions.len()
+    );
+    let _ = writeln!(
+        manifest,
+        "rows = {}\ncolumns = {}",
+        scanner.rows, scanner.columns
+    );
+    let _ = writeln!(
+        manifest,
+        "min_range = {:?}\nmax_range = {:?}",
+        scanner.min_range, scanner.max_range
+    );
+    let range = &experiment.profile.range;
+    let _ = writeln!(
+        manifest,
+        "[range]\nsigma0 = {:?}\nk = {:?}\nangular_sigma = {:?}\ndropout = {:?}",
+        range.sigma0, range.k, range.angular_sigma, range.dropout
+    );
+    put(&dir.join("scan.toml"), &manifest)?;
+
+    let mut truth =
+        String::from("# The true poses (scoring only: the modeller never sees these).\n");
+    pose_line(&mut truth, "world_from_scene", &run.truth.world_from_scene);
+    pose_line(
+        &mut truth,
+        "robot_from_camera",
+        &run.truth.robot_from_camera,
+    );
+    for (v, iso) in run.truth.world_from_robot.iter().enumerate() {
+        pose_line(
+            &mut truth,
+            &format!("viewpoint_{v:03}_world_from_robot"),
+            iso,
+        );
+    }
+    put(&truth_dir.join("run.toml"), &truth)?;
+
+    let summary_path = dir.join("viewpoints.csv");
+    let mut summary =
+        csv::Writer::from_path(&summary_path).map_err(|e| Error::io(&summary_path, e.into()))?;
+    let dof = experiment.arm.dof();
+    let mut header: Vec<String> = vec!["viewpoint".into(), "request".into()];
+    header.extend((1..=dof).map(|j| format!("joint_{j}")));
+    header.extend(["hits", "no_return", "too_close", "dropout"].map(String::from));
+    summary
+        .write_record(&header)
+        .map_err(|e| Error::io(&summary_path, e.into()))?;
+    for scan in &run.scans {
+        write_viewpoint(dir, &truth_dir, scanner, scan)?;
+        let count = |s: BeamStatus| {
+            scan.measurements
+                .iter()
+                .filter(|m| m.status == s)
+                .count()
+                .to_string()
+        };
+        let mut row = vec![
+            scan.viewpoint.to_string(),
+            experiment.viewpoints[scan.viewpoint].request.clone(),
+        ];
+        row.extend(scan.joints.iter().map(|q| format!("{q:?}")));
+        row.extend(
+            [
+                BeamStatus::Hit,
+                BeamStatus::NoReturn,
+                BeamStatus::TooClose,
+                BeamStatus::Dropout,
+            ]
+            .map(count),
+        );
+        summary
+            .write_record(&row)
+            .map_err(|e| Error::io(&summary_path, e.into()))?;
+    }
+    summary.flush().map_err(|e| Error::io(&summary_path, e))
+}
+
+fn write_viewpoint(
+    dir: &Path,
+    truth_dir: &Path,
+    scanner: &crate::sim::sensor::Scanner,
+    scan: &Scan,
+) -> Result<()> {
+    let stem = format!("vp_{:03}", scan.viewpoint);
+    put(&dir.join(format!("{stem}.chain.toml")), &chain_file(scan))?;
+    let scene_from_camera = scan.chain.scene_from_camera();
+
+    let csv_path = dir.join(format!("{stem}.csv"));
+    let mut csv = create(&csv_path)?;
+    let mut line = String::with_capacity(256);
+    writeln!(csv, "beam,row,column,dir_x,dir_y,dir_z,status,range,camera_x,camera_y,camera_z,scene_x,scene_y,scene_z")
+        .map_err(|e| Error::io(&csv_path, e))?;
+    let mut cloud: Vec<[f64; 3]> = Vec::new();
+    for (i, (m, d)) in scan
+        .measurements
+        .iter()
+        .zip(&scanner.directions)
+        .enumerate()
+    {
+        line.clear();
+        let _ = write!(
+            line,
+            "{i},{},{},{:?},{:?},{:?},{}",
+            i / scanner.columns,
+            i % scanner.columns,
+            d.x,
+            d.y,
+            d.z,
+            m.status.as_str()
+        );
+        if m.status == BeamStatus::Hit {
+            let camera = d * m.range;
+            let scene = scene_from_camera * nalgebra::Point3::from(camera);
+            cloud.push([scene.x, scene.y, scene.z]);
+            let _ = write!(
+                line,
+                ",{:?},{:?},{:?},{:?},{:?},{:?},{:?}",
+                m.range, camera.x, camera.y, camera.z, scene.x, scene.y, scene.z
+            );
+        } else {
+            line.push_str(",,,,,,,");
+        }
+        line.push('\n');
+        csv.write_all(line.as_bytes())
+            .map_err(|e| Error::io(&csv_path, e))?;
+    }
+    finish(&csv_path, csv)?;
+
+    let origin = scene_from_camera.translation.vector;
+    write_ply(
+        &dir.join(format!("{stem}.ply")),
+        [origin.x, origin.y, origin.z],
+        &cloud,
+    )?;
+
+    let truth_path = truth_dir.join(format!("{stem}.csv"));
+    let mut truth = create(&truth_path)?;
+    writeln!(truth, "beam,true_range,true_x,true_y,true_z,object")
+        .map_err(|e| Error::io(&truth_path, e))?;
+    for (i, t) in scan.truth.beams.iter().enumerate() {
+        line.clear();
+        if t.range.is_nan() {
+            let _ = writeln!(line, "{i},,,,,");
+        } else {
+            let _ = writeln!(
+                line,
+                "{i},{:?},{:?},{:?},{:?},{}",
+                t.range, t.point.x, t.point.y, t.point.z, t.object
+            );
+        }
+        truth
+            .write_all(line.as_bytes())
+            .map_err(|e| Error::io(&truth_path, e))?;
+    }
+    finish(&truth_path, truth)
+}
+
+/// A binary little-endian PLY: the sensor origin (red) then the points (grey),
+/// in the scene frame, as CloudCompare and MeshLab read it.
+pub fn write_ply(path: &Path, origin: [f64; 3], points: &[[f64; 3]]) -> Result<()> {
+    let mut w = create(path)?;
+    let header = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment sigmap scan in the scene frame; vertex 0 is the sensor origin\n\
+         comment sensor_origin {:?} {:?} {:?}\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
+         property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+        origin[0],
+        origin[1],
+        origin[2],
+        points.len() + 1
+    );
+    w.write_all(header.as_bytes())
+        .map_err(|e| Error::io(path, e))?;
+    let mut record = [0u8; 27];
+    for (k, p) in std::iter::once(&origin).chain(points).enumerate() {
+        for (c, v) in p.iter().enumerate() {
+            record[c * 8..c * 8 + 8].copy_from_slice(&v.to_le_bytes());
+        }
+        record[24..].copy_from_slice(if k == 0 {
+            &[255, 0, 0]
+        } else {
+            &[180, 180, 180]
+        });
+        w.write_all(&record).map_err(|e| Error::io(path, e))?;
+    }
+    finish(path, w)
+}
+
+/// Reads back a PLY written by [`write_ply`]: the sensor origin and the points.
+pub fn read_ply(path: &Path) -> Result<([f64; 3], Vec<[f64; 3]>)> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let end = b"end_header\n";
+    let split = bytes
+        .windows(end.len())
+        .position(|w| w == end)
+        .ok_or_else(|| Error::input(path, "not a PLY file: no end_header"))?;
+    let header = String::from_utf8_lossy(&bytes[..split]);
+    let count: usize = header
+        .lines()
+        .find_map(|l| l.strip_prefix("element vertex "))
+        .and_then(|n| n.trim().parse().ok())
+        .ok_or_else(|| Error::input(path, "PLY without a vertex count"))?;
+    let body = &bytes[split + end.len()..];
+    if body.len() != count * 27 || count == 0 {
+        return Err(Error::input(path, "PLY body does not match its header"));
+    }
+    let mut points: Vec<[f64; 3]> = body
+        .chunks_exact(27)
+        .map(|r| {
+            std::array::from_fn(|c| {
+                f64::from_le_bytes(r[c * 8..c * 8 + 8].try_into().unwrap_or([0; 8]))
+            })
+        })
+        .collect();
+    let origin = points.remove(0);
+    Ok((origin, points))
+}
+
+/// The default output folder of `sigmap simulate`.
+pub fn default_scan_dir(experiment: &Experiment) -> PathBuf {
+    PathBuf::from("results")
+        .join(&experiment.name)
+        .join("scans")
+}

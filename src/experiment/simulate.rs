@@ -1,0 +1,106 @@
+//! One simulated run: the truth draw and a scan per viewpoint.
+
+use super::Experiment;
+use crate::error::{Error, Result};
+use crate::geometry::Isometry3;
+use crate::sim::scan::{cast_beams, NominalChain, Scan, ScanTruth};
+use crate::sim::streams::{Stream, Streams};
+use crate::sim::truth::{draw_arm, draw_pose};
+use crate::uncertainty::UncertainPose;
+
+/// The run-level truth (drawn once per run).
+#[derive(Clone, Debug)]
+pub struct RunTruth {
+    /// The true `world_from_scene`.
+    pub world_from_scene: Isometry3,
+    /// The true `robot_from_camera`.
+    pub robot_from_camera: Isometry3,
+    /// The true `world_from_robot` of each viewpoint.
+    pub world_from_robot: Vec<Isometry3>,
+}
+
+/// Everything one run produced.
+#[derive(Clone, Debug)]
+pub struct SimulatedRun {
+    /// The seed of the run.
+    pub seed: u64,
+    /// One scan per viewpoint.
+    pub scans: Vec<Scan>,
+    /// Scoring only.
+    pub truth: RunTruth,
+}
+
+/// Simulates every viewpoint of `experiment` with `seed`. `progress` is called
+/// after each viewpoint.
+pub fn simulate(
+    experiment: &Experiment,
+    seed: u64,
+    mut progress: impl FnMut(usize),
+) -> Result<SimulatedRun> {
+    let streams = Streams::new(seed);
+    let profile = &experiment.profile;
+    let world_from_scene = UncertainPose {
+        mean: experiment.world_from_scene,
+        covariance: profile.world_from_scene,
+    };
+    let robot_from_camera = UncertainPose {
+        mean: experiment.robot_from_camera,
+        covariance: profile.robot_from_camera,
+    };
+    let mut run_rng = streams.rng(Stream::Run);
+    let true_world_from_scene = draw_pose(&world_from_scene, &mut run_rng).to_isometry();
+    let true_robot_from_camera = draw_pose(&robot_from_camera, &mut run_rng).to_isometry();
+    let mut scans = Vec::with_capacity(experiment.viewpoints.len());
+    let mut true_arm = Vec::with_capacity(experiment.viewpoints.len());
+    for (index, viewpoint) in experiment.viewpoints.iter().enumerate() {
+        let mut rng = streams.rng(Stream::Viewpoint(index as u32));
+        let arm = draw_arm(
+            &profile.arm,
+            &experiment.arm,
+            &experiment.world_from_base,
+            &viewpoint.joints,
+            &mut rng,
+        )
+        .map_err(|e| {
+            Error::input(
+                &experiment.source,
+                format!("viewpoint {index} ({}): {e}", viewpoint.request),
+            )
+        })?;
+        let scene_from_camera =
+            true_world_from_scene.inverse() * arm.truth * true_robot_from_camera;
+        let (measurements, beams) = cast_beams(
+            &experiment.scene,
+            &experiment.scanner,
+            &profile.range,
+            &scene_from_camera,
+            &streams,
+            index as u32,
+        );
+        scans.push(Scan {
+            viewpoint: index,
+            joints: viewpoint.joints.clone(),
+            chain: NominalChain {
+                world_from_scene,
+                world_from_robot: arm.believed,
+                robot_from_camera,
+            },
+            measurements,
+            truth: ScanTruth {
+                scene_from_camera,
+                beams,
+            },
+        });
+        true_arm.push(arm.truth);
+        progress(index + 1);
+    }
+    Ok(SimulatedRun {
+        seed,
+        scans,
+        truth: RunTruth {
+            world_from_scene: true_world_from_scene,
+            robot_from_camera: true_robot_from_camera,
+            world_from_robot: true_arm,
+        },
+    })
+}

@@ -1,0 +1,20 @@
+//! sigmap: find out, with numbers, whether an occupancy map can be trusted.
+//!
+//! A simulated 6-DOF arm carries a laser range scanner through a workcell of
+//! triangle meshes; sigmap injects calibrated Gaussian errors, propagates the
+//! uncertainty through `X_s = T_sw⁻¹ T_rw T_cr X_c` into the scene frame, builds
+//! a probabilistic octree and scores it against the ground truth (Payeur,
+//! IMTC 2002; the math is in the project's MATH.md).
+//!
+//! Modules by concept: [`geometry`] (poses), [`uncertainty`] (uncertain
+//! transforms and covariances), [`sim`] (scene, robot, scanner, truth draw),
+//! [`experiment`] (configuration, runs, files), [`cli`] (the `sigmap` command).
+
+pub mod cli;
+pub mod error;
+pub mod experiment;
+pub mod geometry;
+pub mod sim;
+pub mod uncertainty;
+
+pub use error::{Error, Result};

@@ -1,0 +1,269 @@
+//! Triangle meshes from OBJ and STL files, checked to be closed and outward.
+
+use crate::error::{Error, Result};
+use crate::geometry::Vector3;
+use std::collections::HashMap;
+use std::path::Path;
+
+/// A triangle soup with shared vertices.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    /// Vertex positions.
+    pub vertices: Vec<Vector3>,
+    /// Triangles as vertex indices, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// Reads an OBJ (`.obj`) or STL (`.stl`, ASCII or binary) file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        if !path.exists() {
+            return Err(Error::input(path, "mesh file not found"));
+        }
+        let mesh = match ext.as_deref() {
+            Some("obj") => Self::load_obj(path)?,
+            Some("stl") => Self::load_stl(path)?,
+            _ => {
+                return Err(Error::input(
+                    path,
+                    "unknown mesh format: use an .obj or .stl file",
+                ))
+            }
+        };
+        if mesh.triangles.is_empty() {
+            return Err(Error::input(path, "the mesh has no triangles"));
+        }
+        if let Some(v) = mesh
+            .vertices
+            .iter()
+            .find(|v| !v.iter().all(|c| c.is_finite()))
+        {
+            return Err(Error::input(path, format!("vertex {v:?} is not finite")));
+        }
+        Ok(mesh)
+    }
+
+    fn load_obj(path: &Path) -> Result<Self> {
+        let options = tobj::LoadOptions {
+            triangulate: true,
+            single_index: false,
+            ..Default::default()
+        };
+        let (models, _) = tobj::load_obj(path, &options)
+            .map_err(|e| Error::input(path, format!("malformed OBJ: {e}")))?;
+        let mut mesh = Mesh::default();
+        for model in models {
+            let base = mesh.vertices.len() as u32;
+            mesh.vertices.extend(
+                model
+                    .mesh
+                    .positions
+                    .chunks_exact(3)
+                    .map(|p| Vector3::new(p[0], p[1], p[2])),
+            );
+            mesh.triangles.extend(
+                model
+                    .mesh
+                    .indices
+                    .chunks_exact(3)
+                    .map(|t| [base + t[0], base + t[1], base + t[2]]),
+            );
+        }
+        Ok(mesh)
+    }
+
+    fn load_stl(path: &Path) -> Result<Self> {
+        let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let stl = stl_io::read_stl(&mut file)
+            .map_err(|e| Error::input(path, format!("malformed STL: {e}")))?;
+        Ok(Mesh {
+            vertices: stl
+                .vertices
+                .iter()
+                .map(|v| Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+                .collect(),
+            triangles: stl
+                .faces
+                .iter()
+                .map(|f| f.vertices.map(|i| i as u32))
+                .collect(),
+        })
+    }
+
+    /// Multiplies every vertex by `scale` (per axis). A negative determinant
+    /// mirrors the mesh, so the triangles are flipped to stay outward.
+    pub fn scaled(mut self, scale: Vector3) -> Self {
+        for v in &mut self.vertices {
+            *v = v.component_mul(&scale);
+        }
+        if scale.x * scale.y * scale.z < 0.0 {
+            for t in &mut self.triangles {
+                t.swap(1, 2);
+            }
+        }
+        self
+    }
+
+    /// Signed volume (positive for a closed mesh with outward faces).
+    pub fn signed_volume(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.vertices[i as usize]);
+                a.dot(&b.cross(&c)) / 6.0
+            })
+            .sum()
+    }
+
+    /// Checks that the mesh bounds a solid: no degenerate triangle, every edge
+    /// shared by exactly two triangles that use it in opposite directions
+    /// (closed and consistently oriented), and outward faces (positive volume).
+    pub fn check_closed(&self) -> std::result::Result<(), String> {
+        let n = self.vertices.len() as u32;
+        let mut directed: HashMap<(u32, u32), u32> =
+            HashMap::with_capacity(self.triangles.len() * 3);
+        for (k, t) in self.triangles.iter().enumerate() {
+            if t.iter().any(|&i| i >= n) {
+                return Err(format!(
+                    "triangle {k} refers to a vertex that does not exist"
+                ));
+            }
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                return Err(format!("triangle {k} is degenerate (repeats a vertex)"));
+            }
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                *directed.entry((a, b)).or_default() += 1;
+            }
+        }
+        let repeated = directed.values().filter(|&&c| c > 1).count();
+        if repeated > 0 {
+            return Err(format!(
+                "{repeated} edges are used twice in the same direction: triangles are \
+                 inconsistently oriented or the mesh is not manifold"
+            ));
+        }
+        let open = directed
+            .keys()
+            .filter(|(a, b)| !directed.contains_key(&(*b, *a)))
+            .count();
+        if open > 0 {
+            return Err(format!(
+                "the mesh is open: {open} boundary edges (close its holes so it bounds a solid)"
+            ));
+        }
+        let volume = self.signed_volume();
+        if volume <= 0.0 {
+            return Err(format!(
+                "the mesh is inverted: its faces point inward (signed volume {volume:.3e}); \
+                 flip the triangle winding"
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube_obj() -> String {
+        let mut s = String::new();
+        for z in [0.0, 1.0] {
+            for y in [0.0, 1.0] {
+                for x in [0.0, 1.0] {
+                    s += &format!("v {x} {y} {z}\n");
+                }
+            }
+        }
+        // Outward quads (1-based), triangulated by the reader.
+        s += "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+        s
+    }
+
+    #[test]
+    fn closed_cube_passes_and_open_or_inverted_fail() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("cube.obj");
+        std::fs::write(&path, cube_obj()).unwrap();
+        let mesh = Mesh::load(&path).unwrap();
+        assert_eq!(mesh.triangles.len(), 12);
+        mesh.check_closed().unwrap();
+        assert!((mesh.signed_volume() - 1.0).abs() < 1e-12);
+
+        let mut open = mesh.clone();
+        open.triangles.pop();
+        assert!(open.check_closed().unwrap_err().contains("open"));
+
+        let mut inverted = mesh.clone();
+        for t in &mut inverted.triangles {
+            t.swap(1, 2);
+        }
+        assert!(inverted.check_closed().unwrap_err().contains("inverted"));
+
+        let mirrored = mesh.scaled(Vector3::new(-1.0, 1.0, 1.0));
+        mirrored.check_closed().unwrap();
+    }
+
+    #[test]
+    fn bunny_is_closed() {
+        let path =
+            std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/meshes/bunny.obj");
+        let mesh = Mesh::load(&path).unwrap();
+        assert!(mesh.triangles.len() > 3000);
+        mesh.check_closed().unwrap();
+    }
+
+    #[test]
+    fn stl_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let obj = dir.path().join("cube.obj");
+        std::fs::write(&obj, cube_obj()).unwrap();
+        let mesh = Mesh::load(&obj).unwrap();
+        let triangles: Vec<stl_io::Triangle> = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let v = t.map(|i| {
+                    let p = mesh.vertices[i as usize];
+                    stl_io::Vertex::new([p.x as f32, p.y as f32, p.z as f32])
+                });
+                stl_io::Triangle {
+                    normal: stl_io::Normal::new([0.0; 3]),
+                    vertices: v,
+                }
+            })
+            .collect();
+        let stl = dir.path().join("cube.stl");
+        let mut file = std::fs::File::create(&stl).unwrap();
+        stl_io::write_stl(&mut file, triangles.iter()).unwrap();
+        drop(file);
+        let back = Mesh::load(&stl).unwrap();
+        back.check_closed().unwrap();
+        assert!((back.signed_volume() - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn missing_and_malformed_files_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let msg = Mesh::load(&dir.path().join("nope.obj"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("nope.obj") && msg.contains("not found"),
+            "{msg}"
+        );
+        let bad = dir.path().join("bad.obj");
+        std::fs::write(&bad, "v 0 0 0\nf 1 2 3\n").unwrap();
+        assert!(Mesh::load(&bad).is_err());
+        let ply = dir.path().join("x.ply");
+        std::fs::write(&ply, "ply").unwrap();
+        assert!(Mesh::load(&ply)
+            .unwrap_err()
+            .to_string()
+            .contains(".obj or .stl"));
+    }
+}

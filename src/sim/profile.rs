@@ -1,0 +1,182 @@
+//! Error profiles: the calibrated Gaussian errors of every link of the chain
+//! `X_s = T_sw⁻¹ T_rw T_cr X_c` and of the range measurement.
+
+use super::sensor::RangeModel;
+use crate::error::{read_toml, Error, Result};
+use crate::geometry::Matrix6;
+use crate::uncertainty::CovarianceSpec;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// How the arm's pose error (T_rw) is specified.
+#[derive(Clone, Debug, PartialEq)]
+#[allow(clippy::large_enum_variant)] // one per experiment; boxing buys nothing
+pub enum ArmError {
+    /// A covariance on the six pose parameters of `world_from_robot`.
+    Pose(Matrix6),
+    /// Independent joint-encoder errors (radians or metres per joint),
+    /// propagated through forward kinematics: Γ_rw = J Σ_q Jᵀ is full.
+    Joints(Vec<f64>),
+}
+
+/// A loaded error profile.
+#[derive(Clone, Debug)]
+pub struct ErrorProfile {
+    /// The profile's name.
+    pub name: String,
+    /// What it models and where its numbers come from.
+    pub description: String,
+    /// The file it came from.
+    pub source: PathBuf,
+    /// Range-measurement errors.
+    pub range: RangeModel,
+    /// Γ_sw: scene registration (`world_from_scene`).
+    pub world_from_scene: Matrix6,
+    /// Γ_cr: hand-eye calibration (`robot_from_camera`).
+    pub robot_from_camera: Matrix6,
+    /// Γ_rw: arm pose (`world_from_robot`).
+    pub arm: ArmError,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProfileFile {
+    name: Option<String>,
+    #[serde(default)]
+    description: String,
+    #[serde(default)]
+    sources: Vec<String>,
+    range: RangeModel,
+    #[serde(default)]
+    world_from_scene: CovarianceSpec,
+    #[serde(default)]
+    robot_from_camera: CovarianceSpec,
+    #[serde(default)]
+    world_from_robot: ArmSpec,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct ArmSpec {
+    sigma: Option<Vec<f64>>,
+    covariance: Option<Vec<Vec<f64>>>,
+    joint_sigma: Option<Vec<f64>>,
+}
+
+impl ErrorProfile {
+    /// Reads and checks a profile file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let file: ProfileFile = read_toml(path)?;
+        let bad = |msg: String| Error::input(path, msg);
+        file.range.check().map_err(bad)?;
+        let world_from_scene = file
+            .world_from_scene
+            .to_matrix::<6>("[world_from_scene]")
+            .map_err(bad)?;
+        let robot_from_camera = file
+            .robot_from_camera
+            .to_matrix::<6>("[robot_from_camera]")
+            .map_err(bad)?;
+        let arm = match file.world_from_robot.joint_sigma {
+            Some(sigmas) => {
+                if file.world_from_robot.sigma.is_some()
+                    || file.world_from_robot.covariance.is_some()
+                {
+                    return Err(bad(
+                        "[world_from_robot]: give `joint_sigma` or a pose `sigma`/`covariance`, not both".into(),
+                    ));
+                }
+                if let Some((i, s)) = sigmas
+                    .iter()
+                    .enumerate()
+                    .find(|(_, s)| !s.is_finite() || **s < 0.0)
+                {
+                    return Err(bad(format!(
+                        "[world_from_robot]: joint_sigma[{i}] = {s} must be a finite number >= 0"
+                    )));
+                }
+                ArmError::Joints(sigmas)
+            }
+            None => ArmError::Pose(
+                CovarianceSpec {
+                    sigma: file.world_from_robot.sigma,
+                    covariance: file.world_from_robot.covariance,
+                }
+                .to_matrix::<6>("[world_from_robot]")
+                .map_err(bad)?,
+            ),
+        };
+        let mut description = file.description;
+        for source in &file.sources {
+            description.push_str("\nsource: ");
+            description.push_str(source);
+        }
+        Ok(Self {
+            name: file.name.unwrap_or_else(|| super::scene::stem(path)),
+            description,
+            source: path.to_path_buf(),
+            range: file.range,
+            world_from_scene,
+            robot_from_camera,
+            arm,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(body: &str) -> Result<ErrorProfile> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.toml");
+        std::fs::write(&path, body).unwrap();
+        ErrorProfile::load(&path)
+    }
+
+    #[test]
+    fn shipped_profiles_load() {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("experiments/profiles");
+        for name in ["industrial", "collaborative", "stressed"] {
+            let p = ErrorProfile::load(&dir.join(format!("{name}.toml"))).unwrap();
+            assert!(!p.description.is_empty(), "{name} documents its sources");
+        }
+    }
+
+    #[test]
+    fn bad_profiles_are_rejected_with_the_field() {
+        let ok = "[range]\nsigma0 = 0.001\n";
+        assert!(load(ok).is_ok());
+        let msg = load(&format!(
+            "{ok}[world_from_robot]\nsigma = [0.001, 0.001, -0.001, 0, 0, 0]\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            msg.contains("p.toml")
+                && msg.contains("[world_from_robot]")
+                && msg.contains("negative"),
+            "{msg}"
+        );
+        let msg = load(&format!(
+            "{ok}[robot_from_camera]\nsigma = [nan, 0, 0, 0, 0, 0]\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(msg.contains("finite"), "{msg}");
+        let not_pd = "[world_from_scene]\ncovariance = [[1,2,0,0,0,0],[2,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],[0,0,0,0,1,0],[0,0,0,0,0,1]]\n";
+        let msg = load(&format!("{ok}{not_pd}")).unwrap_err().to_string();
+        assert!(msg.contains("positive semi-definite"), "{msg}");
+        assert!(load("[range]\nsigma0 = -0.1\n").is_err());
+        assert!(load("[range]\nsigma0 = 0.1\ndropout = 1.5\n").is_err());
+        assert!(
+            load("[range]\nsigma0 = 0.1\n[world_from_robot]\njoint_sigma = [0.1, -1]\n").is_err()
+        );
+        assert!(
+            load("[range]\nsigma0 = 0.1\n[world_from_robot]\nsgima = [0.1]\n")
+                .unwrap_err()
+                .to_string()
+                .contains("malformed TOML")
+        );
+    }
+}

@@ -1,0 +1,339 @@
+//! Robots from URDF: kinematic chains, forward kinematics, joint limits and the
+//! geometric Jacobian.
+
+use crate::error::{Error, Result};
+use crate::geometry::{Isometry3, Pose, Vector3};
+use nalgebra::{DMatrix, Translation3, Unit, UnitQuaternion};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// What a joint of a chain does.
+#[derive(Clone, Debug, PartialEq)]
+pub enum JointMotion {
+    /// A rigid connection.
+    Fixed,
+    /// Rotation about `axis` (unit, joint frame) within `[lower, upper]` radians.
+    Revolute {
+        axis: Unit<Vector3>,
+        lower: f64,
+        upper: f64,
+    },
+    /// Unlimited rotation about `axis`.
+    Continuous { axis: Unit<Vector3> },
+    /// Translation along `axis` within `[lower, upper]` metres.
+    Prismatic {
+        axis: Unit<Vector3>,
+        lower: f64,
+        upper: f64,
+    },
+}
+
+/// One joint of a chain: `parent_from_child(q) = origin · motion(q)`.
+#[derive(Clone, Debug)]
+pub struct ChainJoint {
+    /// The URDF joint name.
+    pub name: String,
+    /// `parent_from_joint`: the joint's `<origin>`.
+    pub origin: Isometry3,
+    /// Its motion.
+    pub motion: JointMotion,
+}
+
+impl ChainJoint {
+    fn is_actuated(&self) -> bool {
+        self.motion != JointMotion::Fixed
+    }
+
+    /// `joint_from_child` for the joint value `q`.
+    fn motion_transform(&self, q: f64) -> Isometry3 {
+        match &self.motion {
+            JointMotion::Fixed => Isometry3::identity(),
+            JointMotion::Revolute { axis, .. } | JointMotion::Continuous { axis } => {
+                Isometry3::from_parts(
+                    Translation3::identity(),
+                    UnitQuaternion::from_axis_angle(axis, q),
+                )
+            }
+            JointMotion::Prismatic { axis, .. } => Isometry3::from_parts(
+                Translation3::from(axis.into_inner() * q),
+                UnitQuaternion::identity(),
+            ),
+        }
+    }
+}
+
+/// A robot model read from a URDF file.
+#[derive(Clone, Debug)]
+pub struct Robot {
+    /// The robot's name in the URDF.
+    pub name: String,
+    /// The file it came from.
+    pub source: PathBuf,
+    links: Vec<String>,
+    /// child link -> (parent link, joint)
+    parent_joint: HashMap<String, (String, ChainJoint)>,
+}
+
+impl Robot {
+    /// Reads and checks a URDF file: every joint of a supported type, links
+    /// that exist, a tree (each link has at most one parent), finite origins.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = crate::error::read_text(path)?;
+        let urdf = urdf_rs::read_from_string(&text)
+            .map_err(|e| Error::input(path, format!("malformed URDF: {e}")))?;
+        let links: Vec<String> = urdf.links.iter().map(|l| l.name.clone()).collect();
+        let mut parent_joint = HashMap::new();
+        for joint in &urdf.joints {
+            let bad = |msg: String| Error::input(path, format!("joint '{}': {msg}", joint.name));
+            for end in [&joint.parent.link, &joint.child.link] {
+                if !links.contains(end) {
+                    return Err(bad(format!(
+                        "refers to link '{end}', which the URDF does not define"
+                    )));
+                }
+            }
+            let origin = Pose::new(joint.origin.xyz.0, joint.origin.rpy.0);
+            if !origin.is_finite() {
+                return Err(bad("origin has a non-finite value".into()));
+            }
+            let axis = || {
+                let a = Vector3::from(joint.axis.xyz.0);
+                if !a.iter().all(|v| v.is_finite()) || a.norm() < 1e-9 {
+                    return Err(bad(format!(
+                        "axis {:?} is not a usable direction",
+                        joint.axis.xyz.0
+                    )));
+                }
+                Ok(Unit::new_normalize(a))
+            };
+            let limits = || {
+                let (lower, upper) = (joint.limit.lower, joint.limit.upper);
+                if lower.is_nan() || upper.is_nan() || lower > upper {
+                    return Err(bad(format!(
+                        "limits [{lower}, {upper}] are not an interval"
+                    )));
+                }
+                Ok((lower, upper))
+            };
+            let motion = match joint.joint_type {
+                urdf_rs::JointType::Fixed => JointMotion::Fixed,
+                urdf_rs::JointType::Revolute => {
+                    let (lower, upper) = limits()?;
+                    JointMotion::Revolute { axis: axis()?, lower, upper }
+                }
+                urdf_rs::JointType::Continuous => JointMotion::Continuous { axis: axis()? },
+                urdf_rs::JointType::Prismatic => {
+                    let (lower, upper) = limits()?;
+                    JointMotion::Prismatic { axis: axis()?, lower, upper }
+                }
+                ref other => {
+                    return Err(bad(format!(
+                        "type {other:?} is not supported (use fixed, revolute, continuous or prismatic)"
+                    )))
+                }
+            };
+            let chain_joint = ChainJoint {
+                name: joint.name.clone(),
+                origin: origin.to_isometry(),
+                motion,
+            };
+            let previous = parent_joint.insert(
+                joint.child.link.clone(),
+                (joint.parent.link.clone(), chain_joint),
+            );
+            if previous.is_some() {
+                return Err(bad(format!(
+                    "link '{}' has two parent joints; a URDF must be a tree",
+                    joint.child.link
+                )));
+            }
+        }
+        Ok(Self {
+            name: urdf.name,
+            source: path.to_path_buf(),
+            links,
+            parent_joint,
+        })
+    }
+
+    /// The names of all links.
+    pub fn links(&self) -> &[String] {
+        &self.links
+    }
+
+    /// The kinematic chain from `base` down to `tip` (`base` must be an
+    /// ancestor of `tip`, or the same link).
+    pub fn chain(&self, base: &str, tip: &str) -> Result<KinematicChain> {
+        for link in [base, tip] {
+            if !self.links.iter().any(|l| l == link) {
+                return Err(Error::input(
+                    &self.source,
+                    format!("unknown link '{link}' (links: {})", self.links.join(", ")),
+                ));
+            }
+        }
+        let mut joints = Vec::new();
+        let mut link = tip.to_string();
+        while link != base {
+            match self.parent_joint.get(&link) {
+                Some((parent, joint)) => {
+                    joints.push(joint.clone());
+                    link = parent.clone();
+                }
+                None => {
+                    return Err(Error::input(
+                        &self.source,
+                        format!("link '{base}' is not an ancestor of '{tip}': no chain joins them"),
+                    ))
+                }
+            }
+        }
+        joints.reverse();
+        Ok(KinematicChain {
+            source: self.source.clone(),
+            base: base.to_string(),
+            tip: tip.to_string(),
+            joints,
+        })
+    }
+}
+
+/// A serial chain of joints from a base link to a tip link.
+#[derive(Clone, Debug)]
+pub struct KinematicChain {
+    source: PathBuf,
+    /// The base link.
+    pub base: String,
+    /// The tip link.
+    pub tip: String,
+    joints: Vec<ChainJoint>,
+}
+
+impl KinematicChain {
+    /// Number of actuated joints (the length of a configuration).
+    pub fn dof(&self) -> usize {
+        self.joints.iter().filter(|j| j.is_actuated()).count()
+    }
+
+    /// The actuated joints in chain order.
+    pub fn actuated(&self) -> impl Iterator<Item = &ChainJoint> {
+        self.joints.iter().filter(|j| j.is_actuated())
+    }
+
+    /// The joint limits `[lower, upper]` of the actuated joints (±∞ for a
+    /// continuous joint).
+    pub fn limits(&self) -> Vec<(f64, f64)> {
+        self.actuated()
+            .map(|j| match j.motion {
+                JointMotion::Revolute { lower, upper, .. }
+                | JointMotion::Prismatic { lower, upper, .. } => (lower, upper),
+                _ => (f64::NEG_INFINITY, f64::INFINITY),
+            })
+            .collect()
+    }
+
+    /// Checks a configuration: right length, finite, within every joint limit.
+    pub fn check(&self, q: &[f64]) -> Result<()> {
+        if q.len() != self.dof() {
+            return Err(Error::input(
+                &self.source,
+                format!(
+                    "chain {} -> {} has {} actuated joints, the configuration gives {} values",
+                    self.base,
+                    self.tip,
+                    self.dof(),
+                    q.len()
+                ),
+            ));
+        }
+        for ((joint, &value), (lower, upper)) in self.actuated().zip(q).zip(self.limits()) {
+            if !value.is_finite() {
+                return Err(Error::input(
+                    &self.source,
+                    format!("joint '{}' value {value} is not finite", joint.name),
+                ));
+            }
+            if value < lower || value > upper {
+                return Err(Error::input(
+                    &self.source,
+                    format!(
+                        "joint '{}' = {value:.6} is outside its limits [{lower:.6}, {upper:.6}]",
+                        joint.name
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// `base_from_tip(q)`, checking the limits first.
+    pub fn forward(&self, q: &[f64]) -> Result<Isometry3> {
+        self.check(q)?;
+        Ok(self.forward_unchecked(q))
+    }
+
+    /// `base_from_tip(q)` without any check (`q` must have [`Self::dof`] values).
+    pub fn forward_unchecked(&self, q: &[f64]) -> Isometry3 {
+        let mut values = q.iter();
+        self.joints
+            .iter()
+            .fold(Isometry3::identity(), |acc, joint| {
+                let value = if joint.is_actuated() {
+                    *values.next().unwrap_or(&0.0)
+                } else {
+                    0.0
+                };
+                acc * joint.origin * joint.motion_transform(value)
+            })
+    }
+
+    /// `base_from_tip(q)` and the geometric Jacobian (6 x dof): rows 0-2 the
+    /// linear velocity of the tip origin, rows 3-5 the angular velocity, both
+    /// in the base frame.
+    pub fn jacobian(&self, q: &[f64]) -> (Isometry3, DMatrix<f64>) {
+        let mut frames = Vec::with_capacity(self.dof());
+        let mut values = q.iter();
+        let mut acc = Isometry3::identity();
+        for joint in &self.joints {
+            acc *= joint.origin;
+            let value = if joint.is_actuated() {
+                *values.next().unwrap_or(&0.0)
+            } else {
+                0.0
+            };
+            match &joint.motion {
+                JointMotion::Fixed => {}
+                JointMotion::Revolute { axis, .. } | JointMotion::Continuous { axis } => {
+                    frames.push((
+                        acc.translation.vector,
+                        acc.rotation * axis.into_inner(),
+                        true,
+                    ));
+                }
+                JointMotion::Prismatic { axis, .. } => {
+                    frames.push((
+                        acc.translation.vector,
+                        acc.rotation * axis.into_inner(),
+                        false,
+                    ));
+                }
+            }
+            acc *= joint.motion_transform(value);
+        }
+        let tip = acc.translation.vector;
+        let mut jac = DMatrix::zeros(6, frames.len());
+        for (k, (origin, axis, revolute)) in frames.into_iter().enumerate() {
+            if revolute {
+                jac.fixed_view_mut::<3, 1>(0, k)
+                    .copy_from(&axis.cross(&(tip - origin)));
+                jac.fixed_view_mut::<3, 1>(3, k).copy_from(&axis);
+            } else {
+                jac.fixed_view_mut::<3, 1>(0, k).copy_from(&axis);
+            }
+        }
+        (acc, jac)
+    }
+}
+
+#[cfg(test)]
+mod tests;

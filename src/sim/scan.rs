@@ -1,0 +1,337 @@
+//! Simulating one viewpoint: ray casting from the true sensor pose, range
+//! noise, jitter and dropout; what the modeller receives and what is kept
+//! aside for scoring.
+
+use super::scene::Scene;
+use super::sensor::{RangeModel, Scanner};
+use super::streams::{Stream, Streams, BEAM_BLOCK};
+use crate::geometry::{Isometry3, Point3, Vector3};
+use crate::uncertainty::UncertainPose;
+use rand::Rng;
+use rand_distr::StandardNormal;
+use rayon::prelude::*;
+
+/// The modeller's belief about the chain `X_s = T_sw⁻¹ T_rw T_cr X_c`:
+/// nominal poses and their covariances.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NominalChain {
+    /// T_sw: the scene in the world.
+    pub world_from_scene: UncertainPose,
+    /// T_rw: the robot flange in the world.
+    pub world_from_robot: UncertainPose,
+    /// T_cr: the laser on the flange.
+    pub robot_from_camera: UncertainPose,
+}
+
+impl NominalChain {
+    /// The nominal `scene_from_camera = T_sw⁻¹ T_rw T_cr`.
+    pub fn scene_from_camera(&self) -> Isometry3 {
+        self.world_from_scene.mean.to_isometry().inverse()
+            * self.world_from_robot.mean.to_isometry()
+            * self.robot_from_camera.mean.to_isometry()
+    }
+}
+
+/// Why a beam has no range.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BeamStatus {
+    /// A measured range.
+    Hit,
+    /// Nothing within the maximum range (a miss, or a surface too far).
+    NoReturn,
+    /// The surface is nearer than the minimum range.
+    TooClose,
+    /// The beam hit but the sensor dropped it.
+    Dropout,
+}
+
+impl BeamStatus {
+    /// The word used in files.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            BeamStatus::Hit => "hit",
+            BeamStatus::NoReturn => "no_return",
+            BeamStatus::TooClose => "too_close",
+            BeamStatus::Dropout => "dropout",
+        }
+    }
+}
+
+/// One beam as the sensor reports it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measurement {
+    /// What happened.
+    pub status: BeamStatus,
+    /// The measured range (m); NaN unless `status` is `Hit`.
+    pub range: f64,
+}
+
+/// What really happened to one beam (scoring only).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BeamTruth {
+    /// The true range to the first surface along the true beam; NaN when the
+    /// beam reached nothing within the maximum range.
+    pub range: f64,
+    /// The true first surface point in the scene frame (NaN when none).
+    pub point: Point3,
+    /// The index of the object hit (`u32::MAX` when none).
+    pub object: u32,
+}
+
+/// The truth behind a scan, kept aside for scoring only.
+#[derive(Clone, Debug)]
+pub struct ScanTruth {
+    /// The true `scene_from_camera`.
+    pub scene_from_camera: Isometry3,
+    /// One entry per beam.
+    pub beams: Vec<BeamTruth>,
+}
+
+/// One viewpoint's scan: what the modeller sees, plus the truth.
+#[derive(Clone, Debug)]
+pub struct Scan {
+    /// Viewpoint index within the experiment.
+    pub viewpoint: usize,
+    /// Nominal joint configuration.
+    pub joints: Vec<f64>,
+    /// The believed chain with covariances.
+    pub chain: NominalChain,
+    /// One measurement per beam of the scanner, in its order.
+    pub measurements: Vec<Measurement>,
+    /// Not for the modeller.
+    pub truth: ScanTruth,
+}
+
+/// Rotates the unit vector `d` by the small angles `(a, b)` about two axes
+/// perpendicular to it: `cos θ d + sin θ u`, `θ = |(a, b)|`.
+#[inline]
+fn jitter(d: &Vector3, a: f64, b: f64) -> Vector3 {
+    let theta = (a * a + b * b).sqrt();
+    if theta == 0.0 {
+        return *d;
+    }
+    let helper = if d.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = d.cross(&helper).normalize();
+    let e2 = d.cross(&e1);
+    let u = (e1 * a + e2 * b) / theta;
+    d * theta.cos() + u * theta.sin()
+}
+
+/// Casts every beam of `scanner` from the true `scene_from_camera`, applying
+/// the range model. Beams run in parallel in blocks of [`BEAM_BLOCK`], each
+/// block with its own random stream, so the result does not depend on the
+/// thread count. Every beam consumes four normals/uniforms whatever happens,
+/// so changing one error level keeps the other draws (common random numbers).
+pub fn cast_beams(
+    scene: &Scene,
+    scanner: &Scanner,
+    range: &RangeModel,
+    scene_from_camera: &Isometry3,
+    streams: &Streams,
+    viewpoint: u32,
+) -> (Vec<Measurement>, Vec<BeamTruth>) {
+    let n = scanner.directions.len();
+    let mut measurements = vec![
+        Measurement {
+            status: BeamStatus::NoReturn,
+            range: f64::NAN,
+        };
+        n
+    ];
+    let none = BeamTruth {
+        range: f64::NAN,
+        point: Point3::new(f64::NAN, f64::NAN, f64::NAN),
+        object: u32::MAX,
+    };
+    let mut truth = vec![none; n];
+    let origin = Point3::from(scene_from_camera.translation.vector);
+    let rotation = scene_from_camera.rotation.to_rotation_matrix();
+    measurements
+        .par_chunks_mut(BEAM_BLOCK)
+        .zip(truth.par_chunks_mut(BEAM_BLOCK))
+        .zip(scanner.directions.par_chunks(BEAM_BLOCK))
+        .enumerate()
+        .for_each(|(block, ((out, true_out), directions))| {
+            let mut rng = streams.rng(Stream::Beams {
+                viewpoint,
+                block: block as u32,
+            });
+            for ((m, t), d) in out.iter_mut().zip(true_out.iter_mut()).zip(directions) {
+                let a: f64 = rng.sample(StandardNormal);
+                let b: f64 = rng.sample(StandardNormal);
+                let u: f64 = rng.random();
+                let noise: f64 = rng.sample(StandardNormal);
+                let true_dir =
+                    rotation * jitter(d, a * range.angular_sigma, b * range.angular_sigma);
+                let Some((toi, object)) = scene.cast_ray(&origin, &true_dir, scanner.max_range)
+                else {
+                    continue;
+                };
+                *t = BeamTruth {
+                    range: toi,
+                    point: origin + true_dir * toi,
+                    object: object as u32,
+                };
+                *m = if toi < scanner.min_range {
+                    Measurement {
+                        status: BeamStatus::TooClose,
+                        range: f64::NAN,
+                    }
+                } else if u < range.dropout {
+                    Measurement {
+                        status: BeamStatus::Dropout,
+                        range: f64::NAN,
+                    }
+                } else {
+                    Measurement {
+                        status: BeamStatus::Hit,
+                        range: toi + range.sigma(toi) * noise,
+                    }
+                };
+            }
+        });
+    (measurements, truth)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::sensor::ScannerSpec;
+
+    fn sphere_scene(dir: &std::path::Path) -> Scene {
+        let path = dir.join("s.toml");
+        std::fs::write(
+            &path,
+            "[workspace]\nmin = [-3, -3, -3]\nmax = [3, 3, 3]\n[[object]]\nshape = \"sphere\"\nradius = 0.5\nxyz = [0, 0, 2]\n",
+        )
+        .unwrap();
+        Scene::load(&path).unwrap()
+    }
+
+    #[test]
+    fn exact_sensor_measures_the_sphere() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = sphere_scene(dir.path());
+        let scanner = ScannerSpec {
+            horizontal_fov_deg: 40.0,
+            horizontal_step_deg: 1.0,
+            vertical_fov_deg: 40.0,
+            vertical_step_deg: None,
+            min_range: 0.1,
+            max_range: 5.0,
+        }
+        .build()
+        .unwrap();
+        let exact = RangeModel {
+            sigma0: 0.0,
+            k: 0.0,
+            angular_sigma: 0.0,
+            dropout: 0.0,
+        };
+        let (m, t) = cast_beams(
+            &scene,
+            &scanner,
+            &exact,
+            &Isometry3::identity(),
+            &Streams::new(1),
+            0,
+        );
+        let mut hits = 0;
+        for ((m, t), d) in m.iter().zip(&t).zip(&scanner.directions) {
+            // Analytic ray-sphere distance from the origin along d.
+            // |t d − c|² = r² with c = (0, 0, 2): t² − 4 d_z t + 3.75 = 0.
+            let b = -4.0 * d.z;
+            let disc = b * b / 4.0 - (4.0 - 0.25);
+            if disc < -1e-9 {
+                assert_eq!(m.status, BeamStatus::NoReturn);
+                assert!(t.range.is_nan());
+            } else if disc > 1e-9 {
+                hits += 1;
+                let expected = -b / 2.0 - disc.sqrt();
+                assert_eq!(m.status, BeamStatus::Hit);
+                assert!((m.range - expected).abs() < 1e-12);
+                assert!((t.point.coords - d * expected).norm() < 1e-12);
+            }
+        }
+        assert!(hits > 100);
+        // Beyond max range: no return, never a hit.
+        let short = Scanner {
+            max_range: 1.0,
+            ..scanner.clone()
+        };
+        let (m, _) = cast_beams(
+            &scene,
+            &short,
+            &exact,
+            &Isometry3::identity(),
+            &Streams::new(1),
+            0,
+        );
+        assert!(m
+            .iter()
+            .all(|m| m.status == BeamStatus::NoReturn && m.range.is_nan()));
+    }
+
+    #[test]
+    fn range_noise_has_the_model_sigma() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = sphere_scene(dir.path());
+        let scanner = ScannerSpec {
+            horizontal_fov_deg: 10.0,
+            horizontal_step_deg: 0.05,
+            vertical_fov_deg: 10.0,
+            vertical_step_deg: None,
+            min_range: 0.1,
+            max_range: 5.0,
+        }
+        .build()
+        .unwrap();
+        let model = RangeModel {
+            sigma0: 0.001,
+            k: 0.002,
+            angular_sigma: 0.0,
+            dropout: 0.1,
+        };
+        let (m, t) = cast_beams(
+            &scene,
+            &scanner,
+            &model,
+            &Isometry3::identity(),
+            &Streams::new(5),
+            0,
+        );
+        let z: Vec<f64> = m
+            .iter()
+            .zip(&t)
+            .filter(|(m, _)| m.status == BeamStatus::Hit)
+            .map(|(m, t)| (m.range - t.range) / model.sigma(t.range))
+            .collect();
+        let n = z.len() as f64;
+        let mean = z.iter().sum::<f64>() / n;
+        let var = z.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        // 5 standard errors: mean SE 1/√n, variance SE √(2/(n−1)).
+        assert!(mean.abs() < 5.0 / n.sqrt(), "mean {mean}");
+        assert!(
+            (var - 1.0).abs() < 5.0 * (2.0 / (n - 1.0)).sqrt(),
+            "var {var}"
+        );
+        let dropped = m.iter().filter(|m| m.status == BeamStatus::Dropout).count() as f64;
+        let p = dropped / (dropped + n);
+        assert!(
+            (p - 0.1).abs() < 5.0 * (0.09 / (dropped + n)).sqrt(),
+            "dropout {p}"
+        );
+    }
+
+    #[test]
+    fn jitter_is_a_rotation_with_the_right_spread() {
+        let d = Vector3::new(0.3, -0.2, 0.9).normalize();
+        let j = jitter(&d, 0.01, -0.02);
+        assert!((j.norm() - 1.0).abs() < 1e-15);
+        assert!((d.dot(&j).acos() - (0.01f64.powi(2) + 0.02f64.powi(2)).sqrt()).abs() < 1e-12);
+    }
+}

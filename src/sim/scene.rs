@@ -1,0 +1,341 @@
+//! Scenes: TOML files of primitives and meshes, loaded into parry shapes with a
+//! BVH for ray casting and point-inside tests.
+//!
+//! Everything is expressed in the scene frame (the paper's R_scene); the scene
+//! is placed in the world by `world_from_scene` (T_sw) in the experiment.
+
+use super::mesh::Mesh;
+use crate::error::{read_toml, Error, Result};
+use crate::geometry::{Isometry3, Point3, Pose, Vector3};
+use parry3d_f64::bounding_volume::Aabb;
+use parry3d_f64::math::{Pose as ParryPose, Rotation as ParryRotation, Vector as ParryVector};
+use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy};
+use parry3d_f64::query::Ray;
+use parry3d_f64::shape::{SharedShape, TriMesh, TriMeshFlags};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// An axis-aligned box `[min, max]` in the scene frame (metres).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    /// Lower corner.
+    pub min: Point3,
+    /// Upper corner.
+    pub max: Point3,
+}
+
+impl Bounds {
+    /// True when `p` lies inside (boundary included).
+    pub fn contains(&self, p: &Point3) -> bool {
+        (0..3).all(|k| p[k] >= self.min[k] && p[k] <= self.max[k])
+    }
+
+    /// True when the two boxes overlap.
+    pub fn intersects(&self, other: &Bounds) -> bool {
+        (0..3).all(|k| self.min[k] <= other.max[k] && other.min[k] <= self.max[k])
+    }
+}
+
+/// One solid of the scene.
+#[derive(Clone)]
+pub struct SceneObject {
+    /// Its name (from the file, or `shape #index`).
+    pub name: String,
+    /// `box`, `cylinder`, `sphere` or `mesh`.
+    pub kind: &'static str,
+    /// Number of triangles (0 for analytic primitives).
+    pub triangles: usize,
+    /// Its bounding box in the scene frame.
+    pub bounds: Bounds,
+    pose: ParryPose,
+    shape: SharedShape,
+}
+
+/// A loaded scene: solids, a BVH over them, and the workspace to map.
+pub struct Scene {
+    /// The scene's name.
+    pub name: String,
+    /// The file it came from.
+    pub source: PathBuf,
+    /// The region the map covers (and the ground truth voxelises).
+    pub workspace: Bounds,
+    objects: Vec<SceneObject>,
+    bvh: Bvh,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    name: Option<String>,
+    #[serde(default)]
+    description: String,
+    workspace: WorkspaceSpec,
+    #[serde(rename = "object", default)]
+    objects: Vec<ObjectSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WorkspaceSpec {
+    min: [f64; 3],
+    max: [f64; 3],
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum Scale {
+    Uniform(f64),
+    PerAxis([f64; 3]),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectSpec {
+    name: Option<String>,
+    shape: String,
+    size: Option<[f64; 3]>,
+    radius: Option<f64>,
+    height: Option<f64>,
+    file: Option<PathBuf>,
+    scale: Option<Scale>,
+    #[serde(default)]
+    xyz: [f64; 3],
+    #[serde(default)]
+    rpy: [f64; 3],
+}
+
+/// nalgebra isometry to parry pose (the one conversion point).
+pub(crate) fn to_parry_pose(iso: &Isometry3) -> ParryPose {
+    let q = iso.rotation.quaternion();
+    let t = iso.translation.vector;
+    ParryPose::from_parts(
+        ParryVector::new(t.x, t.y, t.z),
+        ParryRotation::from_xyzw(q.i, q.j, q.k, q.w),
+    )
+}
+
+pub(crate) fn to_parry(v: &Vector3) -> ParryVector {
+    ParryVector::new(v.x, v.y, v.z)
+}
+
+fn positive(value: Option<f64>, field: &str, shape: &str) -> std::result::Result<f64, String> {
+    match value {
+        None => Err(format!("a {shape} needs `{field}`")),
+        Some(v) if !(v.is_finite() && v > 0.0) => {
+            Err(format!("`{field}` = {v} must be a positive length (m)"))
+        }
+        Some(v) => Ok(v),
+    }
+}
+
+impl ObjectSpec {
+    fn unused(&self, allowed: &[&str]) -> std::result::Result<(), String> {
+        let present = [
+            ("size", self.size.is_some()),
+            ("radius", self.radius.is_some()),
+            ("height", self.height.is_some()),
+            ("file", self.file.is_some()),
+            ("scale", self.scale.is_some()),
+        ];
+        match present
+            .iter()
+            .find(|(name, set)| *set && !allowed.contains(name))
+        {
+            Some((name, _)) => Err(format!("a {} has no `{name}`", self.shape)),
+            None => Ok(()),
+        }
+    }
+
+    /// The shape in its own frame, its kind, triangle count and the local
+    /// pose of parry's shape in the object frame. Errors name `scene` (or the
+    /// mesh file) and start with `label`.
+    fn build(
+        &self,
+        scene: &Path,
+        label: &str,
+    ) -> Result<(SharedShape, &'static str, usize, ParryPose)> {
+        let bad = |msg: String| Error::input(scene, format!("{label}{msg}"));
+        let local = ParryPose::identity();
+        match self.shape.as_str() {
+            "box" => {
+                self.unused(&["size"]).map_err(bad)?;
+                let size = self.size.ok_or_else(|| {
+                    bad("a box needs `size = [x, y, z]` (full edge lengths, m)".into())
+                })?;
+                if size.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+                    return Err(bad(format!(
+                        "box size {size:?} must be positive lengths (m)"
+                    )));
+                }
+                Ok((
+                    SharedShape::cuboid(size[0] / 2.0, size[1] / 2.0, size[2] / 2.0),
+                    "box",
+                    0,
+                    local,
+                ))
+            }
+            "sphere" => {
+                self.unused(&["radius"]).map_err(bad)?;
+                let r = positive(self.radius, "radius", "sphere").map_err(bad)?;
+                Ok((SharedShape::ball(r), "sphere", 0, local))
+            }
+            "cylinder" => {
+                self.unused(&["radius", "height"]).map_err(bad)?;
+                let r = positive(self.radius, "radius", "cylinder").map_err(bad)?;
+                let h = positive(self.height, "height", "cylinder").map_err(bad)?;
+                // parry's cylinder runs along its y axis; ours along z.
+                let y_to_z = ParryPose::from_rotation(ParryRotation::from_rotation_x(
+                    std::f64::consts::FRAC_PI_2,
+                ));
+                Ok((SharedShape::cylinder(h / 2.0, r), "cylinder", 0, y_to_z))
+            }
+            "mesh" => {
+                self.unused(&["file", "scale"]).map_err(bad)?;
+                let file = self.file.as_ref().ok_or_else(|| {
+                    bad(
+                        "a mesh needs `file` (an .obj or .stl path relative to the scene file)"
+                            .into(),
+                    )
+                })?;
+                let scale = match self.scale {
+                    None => Vector3::repeat(1.0),
+                    Some(Scale::Uniform(s)) => Vector3::repeat(s),
+                    Some(Scale::PerAxis(s)) => Vector3::from(s),
+                };
+                if scale.iter().any(|s| !s.is_finite() || *s == 0.0) {
+                    return Err(bad(format!(
+                        "mesh scale {:?} must be finite and non-zero",
+                        scale.as_slice()
+                    )));
+                }
+                let path = scene.parent().unwrap_or(Path::new(".")).join(file);
+                let mesh = Mesh::load(&path)
+                    .map_err(|e| e.context(format!("{label}(from {}) ", scene.display())))?
+                    .scaled(scale);
+                mesh.check_closed().map_err(|e| Error::input(&path, e))?;
+                let n = mesh.triangles.len();
+                let vertices = mesh.vertices.iter().map(to_parry).collect();
+                let mut trimesh = TriMesh::new(vertices, mesh.triangles)
+                    .map_err(|e| Error::input(&path, format!("cannot build the mesh: {e:?}")))?;
+                trimesh
+                    .set_flags(TriMeshFlags::ORIENTED | TriMeshFlags::HALF_EDGE_TOPOLOGY)
+                    .map_err(|e| Error::input(&path, format!("bad mesh topology: {e:?}")))?;
+                Ok((SharedShape::new(trimesh), "mesh", n, local))
+            }
+            other => Err(bad(format!(
+                "unknown shape '{other}' (use box, cylinder, sphere or mesh)"
+            ))),
+        }
+    }
+}
+
+impl Scene {
+    /// Reads a scene file. Mesh paths are relative to the scene file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let file: SceneFile = read_toml(path)?;
+        let _ = &file.description;
+        let bad = |msg: String| Error::input(path, msg);
+        let ws = &file.workspace;
+        if ws.min.iter().chain(&ws.max).any(|v| !v.is_finite())
+            || (0..3).any(|k| ws.min[k] >= ws.max[k])
+        {
+            return Err(bad(format!(
+                "[workspace] min {:?} must be below max {:?} on every axis",
+                ws.min, ws.max
+            )));
+        }
+        let workspace = Bounds {
+            min: Point3::from(ws.min),
+            max: Point3::from(ws.max),
+        };
+        if file.objects.is_empty() {
+            return Err(bad("the scene has no [[object]]".into()));
+        }
+        let mut objects = Vec::with_capacity(file.objects.len());
+        for (index, spec) in file.objects.iter().enumerate() {
+            let name = spec
+                .name
+                .clone()
+                .unwrap_or_else(|| format!("{} #{index}", spec.shape));
+            let label = format!("object '{name}': ");
+            let placement = Pose::new(spec.xyz, spec.rpy);
+            if !placement.is_finite() {
+                return Err(bad(format!("{label}xyz/rpy must be finite")));
+            }
+            let (shape, kind, triangles, local) = spec.build(path, &label)?;
+            let pose = to_parry_pose(&placement.to_isometry()) * local;
+            let aabb = shape.compute_aabb(&pose);
+            let bounds = Bounds {
+                min: Point3::new(aabb.mins.x, aabb.mins.y, aabb.mins.z),
+                max: Point3::new(aabb.maxs.x, aabb.maxs.y, aabb.maxs.z),
+            };
+            if !bounds.intersects(&workspace) {
+                return Err(bad(format!("{label}lies entirely outside the workspace")));
+            }
+            objects.push(SceneObject {
+                name,
+                kind,
+                triangles,
+                bounds,
+                pose,
+                shape,
+            });
+        }
+        let leaves: Vec<Aabb> = objects
+            .iter()
+            .map(|o| o.shape.compute_aabb(&o.pose))
+            .collect();
+        let bvh = Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves);
+        Ok(Self {
+            name: file.name.unwrap_or_else(|| stem(path)),
+            source: path.to_path_buf(),
+            workspace,
+            objects,
+            bvh,
+        })
+    }
+
+    /// The solids.
+    pub fn objects(&self) -> &[SceneObject] {
+        &self.objects
+    }
+
+    /// Total triangle count of the meshes.
+    pub fn triangle_count(&self) -> usize {
+        self.objects.iter().map(|o| o.triangles).sum()
+    }
+
+    /// Distance along the unit direction `dir` from `origin` to the first
+    /// surface within `max_range`, and the object hit.
+    #[inline]
+    pub fn cast_ray(&self, origin: &Point3, dir: &Vector3, max_range: f64) -> Option<(f64, usize)> {
+        let ray = Ray::new(to_parry(&origin.coords), to_parry(dir));
+        self.bvh
+            .cast_ray(&ray, max_range, |i, best| {
+                let object = &self.objects[i as usize];
+                object.shape.cast_ray(&object.pose, &ray, best, true)
+            })
+            .map(|(i, toi)| (toi, i as usize))
+    }
+
+    /// The first object whose solid contains `p`, if any.
+    pub fn object_containing(&self, p: &Point3) -> Option<usize> {
+        let q = to_parry(&p.coords);
+        let probe = Aabb::new(q, q);
+        let found = self.bvh.intersect_aabb(&probe).find(|&i| {
+            let object = &self.objects[i as usize];
+            object.shape.contains_point(&object.pose, q)
+        });
+        found.map(|i| i as usize)
+    }
+}
+
+/// A file's stem as a name.
+pub(crate) fn stem(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "unnamed".into())
+}
+
+#[cfg(test)]
+mod tests;
