@@ -49,6 +49,47 @@ pub struct SceneObject {
     pub bounds: Bounds,
     pose: ParryPose,
     shape: SharedShape,
+    /// `(radius, half height)` of a cylinder, cast analytically: parry casts
+    /// rays on cylinders by GJK, several times slower than the closed form.
+    cylinder: Option<(f64, f64)>,
+}
+
+/// First entry of the ray `o + t d` (t in `[0, max]`) into the closed solid
+/// cylinder `x² + z² <= r²`, `|y| <= h` (parry's local cylinder frame); 0 when
+/// `o` is inside.
+fn cast_cylinder(
+    radius: f64,
+    half_height: f64,
+    o: ParryVector,
+    d: ParryVector,
+    max: f64,
+) -> Option<f64> {
+    let r2 = radius * radius;
+    let radial = |t: f64| (o.x + t * d.x).powi(2) + (o.z + t * d.z).powi(2);
+    if o.y.abs() <= half_height && radial(0.0) <= r2 {
+        return Some(0.0);
+    }
+    let mut best = f64::INFINITY;
+    let a = d.x * d.x + d.z * d.z;
+    if a > 0.0 {
+        let b = o.x * d.x + o.z * d.z;
+        let disc = b * b - a * (o.x * o.x + o.z * o.z - r2);
+        if disc >= 0.0 {
+            let t = (-b - disc.sqrt()) / a;
+            if t >= 0.0 && (o.y + t * d.y).abs() <= half_height {
+                best = t;
+            }
+        }
+    }
+    if d.y != 0.0 {
+        for cap in [-half_height, half_height] {
+            let t = (cap - o.y) / d.y;
+            if t >= 0.0 && t < best && radial(t) <= r2 {
+                best = t;
+            }
+        }
+    }
+    (best <= max).then_some(best)
 }
 
 /// A loaded scene: solids, a BVH over them, and the workspace to map.
@@ -272,6 +313,7 @@ impl Scene {
             if !bounds.intersects(&workspace) {
                 return Err(bad(format!("{label}lies entirely outside the workspace")));
             }
+            let cylinder = shape.as_cylinder().map(|c| (c.radius, c.half_height));
             objects.push(SceneObject {
                 name,
                 kind,
@@ -279,6 +321,7 @@ impl Scene {
                 bounds,
                 pose,
                 shape,
+                cylinder,
             });
         }
         let leaves: Vec<Aabb> = objects
@@ -313,7 +356,13 @@ impl Scene {
         self.bvh
             .cast_ray(&ray, max_range, |i, best| {
                 let object = &self.objects[i as usize];
-                object.shape.cast_ray(&object.pose, &ray, best, true)
+                match object.cylinder {
+                    Some((radius, half_height)) => {
+                        let local = ray.inverse_transform_by(&object.pose);
+                        cast_cylinder(radius, half_height, local.origin, local.dir, best)
+                    }
+                    None => object.shape.cast_ray(&object.pose, &ray, best, true),
+                }
             })
             .map(|(i, toi)| (toi, i as usize))
     }

@@ -130,3 +130,45 @@ fn bad_scene_inputs_are_named() {
     let msg = Scene::load(&path).err().unwrap().to_string();
     assert!(msg.contains("open.obj") && msg.contains("open"), "{msg}");
 }
+
+#[test]
+fn analytic_cylinder_cast_agrees_with_parry() {
+    use parry3d_f64::query::RayCast;
+    use parry3d_f64::shape::Cylinder;
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+    let cylinder = Cylinder::new(0.3, 0.1);
+    let mut hits = 0;
+    for _ in 0..2000 {
+        let o = ParryVector::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        let target = ParryVector::new(
+            rng.random_range(-0.15..0.15),
+            rng.random_range(-0.4..0.4),
+            rng.random_range(-0.15..0.15),
+        );
+        let d = (target - o).normalize();
+        let ours = cast_cylinder(0.1, 0.3, o, d, 5.0);
+        let theirs = cylinder.cast_local_ray(&Ray::new(o, d), 5.0, true);
+        match (ours, theirs) {
+            (Some(a), Some(b)) => {
+                hits += 1;
+                assert!((a - b).abs() < 1e-6, "{a} vs {b}");
+            }
+            (None, None) => {}
+            // Grazing rays may differ within GJK's tolerance.
+            (a, b) => {
+                let t = a.or(b).unwrap();
+                let p = o + d * t;
+                let rim = ((p.x * p.x + p.z * p.z).sqrt() - 0.1)
+                    .abs()
+                    .min((p.y.abs() - 0.3).abs());
+                assert!(rim < 1e-6, "{a:?} vs {b:?}");
+            }
+        }
+    }
+    assert!(hits > 500);
+}

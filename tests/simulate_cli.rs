@@ -1,0 +1,263 @@
+//! End-to-end runs of `sigmap simulate`: determinism across thread counts,
+//! files that read back, and a clear exit-2 error for every kind of bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn sigmap(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sigmap"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .expect("run sigmap")
+}
+
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let rel = path
+                    .strip_prefix(dir)
+                    .unwrap()
+                    .to_string_lossy()
+                    .into_owned();
+                out.push((rel, std::fs::read(&path).unwrap()));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn same_seed_gives_identical_bytes_with_one_and_two_threads() {
+    let tmp = tempfile::tempdir().unwrap();
+    let one = tmp.path().join("one");
+    let two = tmp.path().join("two");
+    let other_seed = tmp.path().join("seed2");
+    for (dir, threads, seed) in [(&one, "1", "7"), (&two, "2", "7"), (&other_seed, "2", "8")] {
+        let out = sigmap(&[
+            "simulate",
+            "experiments/quickstart.toml",
+            "--out",
+            dir.to_str().unwrap(),
+            "--threads",
+            threads,
+            "--seed",
+            seed,
+            "--quiet",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let a = files(&one);
+    assert!(
+        a.len() >= 6 * 4 + 3,
+        "expected per-viewpoint files, got {}",
+        a.len()
+    );
+    assert_eq!(a, files(&two), "thread count changed the output");
+    assert_ne!(a, files(&other_seed), "the seed must matter");
+}
+
+#[test]
+fn ply_cloud_matches_the_csv_points() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = sigmap(&[
+        "simulate",
+        "experiments/quickstart.toml",
+        "--out",
+        tmp.path().to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(out.status.success());
+    let (origin, points) = sigmap::experiment::read_ply(&tmp.path().join("vp_002.ply")).unwrap();
+    let mut reader = csv::Reader::from_path(tmp.path().join("vp_002.csv")).unwrap();
+    let headers = reader.headers().unwrap().clone();
+    let col = |name: &str| headers.iter().position(|h| h == name).unwrap();
+    let (status, sx, sy, sz) = (
+        col("status"),
+        col("scene_x"),
+        col("scene_y"),
+        col("scene_z"),
+    );
+    let csv_points: Vec<[f64; 3]> = reader
+        .records()
+        .map(|r| r.unwrap())
+        .filter(|r| &r[status] == "hit")
+        .map(|r| {
+            [
+                r[sx].parse().unwrap(),
+                r[sy].parse().unwrap(),
+                r[sz].parse().unwrap(),
+            ]
+        })
+        .collect();
+    assert_eq!(points, csv_points);
+    assert!(points.len() > 1000);
+    // Every measured point lies within the scanner's range of the origin.
+    for p in &points {
+        let d =
+            ((p[0] - origin[0]).powi(2) + (p[1] - origin[1]).powi(2) + (p[2] - origin[2]).powi(2))
+                .sqrt();
+        assert!(d > 0.05 && d < 2.1, "{d}");
+    }
+    // The truth is kept apart, one row per beam.
+    let truth = std::fs::read_to_string(tmp.path().join("truth/vp_002.csv")).unwrap();
+    let beams = std::fs::read_to_string(tmp.path().join("vp_002.csv")).unwrap();
+    assert_eq!(truth.lines().count(), beams.lines().count());
+    assert!(!beams.contains("true_"));
+}
+
+/// Copies the quickstart inputs into a temporary tree, applies `edit` to one
+/// of them, runs `simulate`, and returns (exit code, stderr, out dir exists).
+fn broken(file: &str, edit: impl Fn(String) -> String) -> (i32, String, bool) {
+    let tmp = tempfile::tempdir().unwrap();
+    let r = root();
+    for dir in ["experiments/profiles", "scenes/meshes", "robots"] {
+        std::fs::create_dir_all(tmp.path().join(dir)).unwrap();
+    }
+    for f in [
+        "experiments/quickstart.toml",
+        "experiments/profiles/collaborative.toml",
+        "scenes/tabletop.toml",
+        "scenes/meshes/bunny.obj",
+        "robots/ur5.urdf",
+    ] {
+        let text = std::fs::read_to_string(r.join(f)).unwrap();
+        let text = if f == file { edit(text) } else { text };
+        std::fs::write(tmp.path().join(f), text).unwrap();
+    }
+    let out_dir = tmp.path().join("out");
+    let out = sigmap(&[
+        "simulate",
+        tmp.path()
+            .join("experiments/quickstart.toml")
+            .to_str()
+            .unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+        out_dir.exists(),
+    )
+}
+
+fn assert_bad(file: &str, edit: impl Fn(String) -> String, names: &str, says: &str) {
+    let (code, stderr, wrote) = broken(file, edit);
+    assert_eq!(code, 2, "{stderr}");
+    assert!(
+        stderr.contains(names),
+        "error should name {names}: {stderr}"
+    );
+    assert!(stderr.contains(says), "error should say {says}: {stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(!wrote, "no results may be written on bad input");
+}
+
+#[test]
+fn bad_inputs_exit_2_naming_file_and_problem() {
+    assert_bad(
+        "scenes/tabletop.toml",
+        |t| t.replace("meshes/bunny.obj", "meshes/rabbit.obj"),
+        "rabbit.obj",
+        "not found",
+    );
+    assert_bad(
+        "experiments/quickstart.toml",
+        |t| t.replace("seed = 1", "seed = = 1"),
+        "quickstart.toml",
+        "malformed TOML",
+    );
+    assert_bad(
+        "robots/ur5.urdf",
+        |t| t.replace("</robot>", ""),
+        "ur5.urdf",
+        "malformed URDF",
+    );
+    assert_bad(
+        "experiments/quickstart.toml",
+        |t| t.replace("flange_link = \"tool0\"", "flange_link = \"tool9\""),
+        "ur5.urdf",
+        "unknown link 'tool9'",
+    );
+    assert_bad(
+        "experiments/profiles/collaborative.toml",
+        |t| {
+            t.replace(
+                "sigma = [0.001, 0.001, 0.001,",
+                "sigma = [0.001, -0.001, 0.001,",
+            )
+        },
+        "collaborative.toml",
+        "negative",
+    );
+    assert_bad(
+        "experiments/profiles/collaborative.toml",
+        |t| t.replace("sigma0 = 0.001", "sigma0 = nan"),
+        "collaborative.toml",
+        "sigma0",
+    );
+    assert_bad(
+        "experiments/profiles/collaborative.toml",
+        |t| {
+            t.replace(
+                "sigma = [0.002, 0.002, 0.002, 0.00349, 0.00349, 0.00349]",
+                "covariance = [[1,2,0,0,0,0],[2,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],[0,0,0,0,1,0],[0,0,0,0,0,1]]",
+            )
+        },
+        "collaborative.toml",
+        "positive semi-definite",
+    );
+    assert_bad(
+        "experiments/quickstart.toml",
+        |t| {
+            t.replace(
+                "joints = [0.0, -1.2, 1.6, -1.97, -1.5708, 0.0]",
+                "joints = [0.0, -1.2, 3.5, -1.97, -1.5708, 0.0]",
+            )
+        },
+        "ur5.urdf",
+        "elbow_joint",
+    );
+    assert_bad(
+        "experiments/quickstart.toml",
+        |t| t.replace("distance = 0.45", "distance = 2.5"),
+        "quickstart.toml",
+        "unreachable",
+    );
+    assert_bad(
+        "experiments/quickstart.toml",
+        |t| t.replace("distance = 0.45", "distance = nan"),
+        "quickstart.toml",
+        "viewpoint 2",
+    );
+}
+
+#[test]
+fn usage_errors_and_help() {
+    let out = sigmap(&["simulate"]);
+    assert_eq!(out.status.code(), Some(2));
+    let out = sigmap(&["simulate", "does/not/exist.toml"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("exist.toml: file not found"));
+    for args in [&["--help"][..], &["simulate", "--help"][..]] {
+        let out = sigmap(args);
+        assert!(out.status.success());
+        assert!(String::from_utf8_lossy(&out.stdout).contains("Usage"));
+    }
+}
