@@ -1,13 +1,22 @@
-//! Uncertain transforms and Gaussian input errors (MATH.md §1, §6).
-//!
-//! This module owns the covariance types shared by the simulator (which draws
-//! errors from them) and the propagators (which push them through the chain).
+//! Uncertainty over the transform chain (MATH.md §1–3, §6): uncertain poses,
+//! the chain `T_1 ··· T_k X`, four propagators behind one trait, and the
+//! statistics that check them.
 
+pub mod chain;
+pub mod consistency;
 mod covariance;
+pub mod jacobian;
+pub mod monte_carlo;
+pub mod unscented;
 
+pub use chain::{read_chain_file, ChainLink, Gaussian3, UncertainChain, UncertainPoint};
 pub use covariance::{check_covariance, sqrt_factor, CovarianceSpec};
+pub use jacobian::JacobianPropagator;
+pub use monte_carlo::{BlindPropagator, MonteCarloPropagator};
+pub use unscented::{SigmaSet, UnscentedPropagator};
 
-use crate::geometry::{Matrix6, Pose};
+use crate::geometry::{Matrix3, Matrix6, Pose, Vector3};
+use rayon::prelude::*;
 
 /// A pose known up to a zero-mean Gaussian error on its six parameters
 /// (additive on the angles, MATH.md "global conventions").
@@ -33,4 +42,39 @@ impl UncertainPose {
     pub fn is_exact(&self) -> bool {
         self.covariance.iter().all(|v| *v == 0.0)
     }
+}
+
+/// Maps a measured point and its covariance through an uncertain chain.
+/// Implementations precompute what is constant for a chain (one viewpoint) so
+/// that each point is cheap; they hold no mutable state.
+pub trait Propagator: Sync {
+    /// The method's name in files (`blind`, `jacobian`, `unscented`, `monte_carlo`).
+    fn name(&self) -> &'static str;
+
+    /// The output-frame mean and covariance of one point.
+    fn propagate(&self, point: &UncertainPoint) -> Gaussian3;
+
+    /// The sensor origin (the point `0`, known exactly) in the output frame.
+    fn origin(&self) -> Gaussian3 {
+        self.propagate(&UncertainPoint {
+            mean: Vector3::zeros(),
+            covariance: Matrix3::zeros(),
+        })
+    }
+
+    /// Propagates `points` into the preallocated `out` (same length) on one
+    /// thread, without allocating.
+    fn propagate_into(&self, points: &[UncertainPoint], out: &mut [Gaussian3]) {
+        for (p, o) in points.iter().zip(out.iter_mut()) {
+            *o = self.propagate(p);
+        }
+    }
+}
+
+/// Propagates a whole scan in parallel (rayon) into `out`.
+pub fn propagate_scan(propagator: &dyn Propagator, points: &[UncertainPoint], out: &mut [Gaussian3]) {
+    assert_eq!(points.len(), out.len(), "one output per point");
+    out.par_chunks_mut(4096)
+        .zip(points.par_chunks(4096))
+        .for_each(|(o, p)| propagator.propagate_into(p, o));
 }

@@ -1,0 +1,176 @@
+//! The uncertain transform chain `X_out = T_1 · T_2 ··· T_k · X` (MATH.md §1.2),
+//! any link of which may be inverted, applied to an uncertain point.
+
+use super::{CovarianceSpec, UncertainPose};
+use crate::error::{read_toml, Error, Result};
+use crate::geometry::{Isometry3, Matrix3, Pose, Vector3};
+use serde::Deserialize;
+use std::path::Path;
+
+/// One link of a chain: an uncertain pose, used as `T(t)` or `T(t)⁻¹`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChainLink {
+    /// A label (`world_from_scene`, ...).
+    pub name: String,
+    /// The pose parameters and their covariance.
+    pub pose: UncertainPose,
+    /// The link is the inverse of `pose` (the paper's T_sw⁻¹).
+    pub inverse: bool,
+}
+
+impl ChainLink {
+    /// The link's transform for pose parameters `pose`.
+    pub fn transform(&self, pose: &Pose) -> Isometry3 {
+        let t = pose.to_isometry();
+        if self.inverse {
+            t.inverse()
+        } else {
+            t
+        }
+    }
+}
+
+/// A measured point with its covariance, in the chain's last frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UncertainPoint {
+    /// Mean (m).
+    pub mean: Vector3,
+    /// Covariance (m²).
+    pub covariance: Matrix3,
+}
+
+/// A Gaussian estimate of a point in the output frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gaussian3 {
+    /// Mean (m).
+    pub mean: Vector3,
+    /// Covariance (m²).
+    pub covariance: Matrix3,
+}
+
+impl Default for Gaussian3 {
+    fn default() -> Self {
+        Self {
+            mean: Vector3::zeros(),
+            covariance: Matrix3::zeros(),
+        }
+    }
+}
+
+/// The chain `T_1 ··· T_k`, listed left to right as in the formula: `T_1` maps
+/// into the output frame, `T_k` takes the measurement.
+#[derive(Clone, Debug, PartialEq)]
+pub struct UncertainChain {
+    /// The links, left to right.
+    pub links: Vec<ChainLink>,
+}
+
+impl UncertainChain {
+    /// The paper's chain `T_sw⁻¹ · T_rw · T_cr`.
+    pub fn paper(world_from_scene: UncertainPose, world_from_robot: UncertainPose, robot_from_camera: UncertainPose) -> Self {
+        let link = |name: &str, pose, inverse| ChainLink {
+            name: name.into(),
+            pose,
+            inverse,
+        };
+        Self {
+            links: vec![
+                link("world_from_scene", world_from_scene, true),
+                link("world_from_robot", world_from_robot, false),
+                link("robot_from_camera", robot_from_camera, false),
+            ],
+        }
+    }
+
+    /// The nominal chain transform (every link at its mean).
+    pub fn nominal(&self) -> Isometry3 {
+        self.evaluate(|i| self.links[i].pose.mean)
+    }
+
+    /// The chain transform with link `i` at pose `pose(i)`.
+    pub fn evaluate(&self, pose: impl Fn(usize) -> Pose) -> Isometry3 {
+        self.links
+            .iter()
+            .enumerate()
+            .fold(Isometry3::identity(), |acc, (i, link)| acc * link.transform(&pose(i)))
+    }
+
+    /// Number of uncertain parameters: 6 per link plus 3 for the point.
+    pub fn parameter_count(&self) -> usize {
+        6 * self.links.len() + 3
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ChainFile {
+    #[serde(rename = "transform")]
+    transforms: Vec<TransformSpec>,
+    point: Option<PointSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TransformSpec {
+    name: Option<String>,
+    #[serde(default)]
+    xyz: [f64; 3],
+    #[serde(default)]
+    rpy: [f64; 3],
+    #[serde(default)]
+    inverse: bool,
+    sigma: Option<Vec<f64>>,
+    covariance: Option<Vec<Vec<f64>>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PointSpec {
+    xyz: [f64; 3],
+    sigma: Option<Vec<f64>>,
+    covariance: Option<Vec<Vec<f64>>>,
+}
+
+fn spec(sigma: &Option<Vec<f64>>, covariance: &Option<Vec<Vec<f64>>>) -> CovarianceSpec {
+    CovarianceSpec {
+        sigma: sigma.clone(),
+        covariance: covariance.clone(),
+    }
+}
+
+/// Reads a chain file (the `sigmap propagate` format, see README): the chain
+/// and, if the file has a `[point]`, the measurement.
+pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainPoint>)> {
+    let file: ChainFile = read_toml(path)?;
+    let bad = |msg: String| Error::input(path, msg);
+    if file.transforms.is_empty() {
+        return Err(bad("the chain has no [[transform]]".into()));
+    }
+    let mut links = Vec::with_capacity(file.transforms.len());
+    for (i, t) in file.transforms.iter().enumerate() {
+        let name = t.name.clone().unwrap_or_else(|| format!("transform {i}"));
+        let mean = Pose::new(t.xyz, t.rpy);
+        if !mean.is_finite() {
+            return Err(bad(format!("[[transform]] '{name}': xyz/rpy must be finite")));
+        }
+        let covariance = spec(&t.sigma, &t.covariance).to_matrix::<6>(&format!("[[transform]] '{name}'")).map_err(bad)?;
+        links.push(ChainLink {
+            name,
+            pose: UncertainPose { mean, covariance },
+            inverse: t.inverse,
+        });
+    }
+    let point = match file.point {
+        None => None,
+        Some(p) => {
+            if !p.xyz.iter().all(|v| v.is_finite()) {
+                return Err(bad("[point] xyz must be finite".into()));
+            }
+            Some(UncertainPoint {
+                mean: Vector3::from(p.xyz),
+                covariance: spec(&p.sigma, &p.covariance).to_matrix::<3>("[point]").map_err(bad)?,
+            })
+        }
+    };
+    Ok((UncertainChain { links }, point))
+}

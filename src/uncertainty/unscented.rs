@@ -1,0 +1,180 @@
+//! Sigma-point propagation (MATH.md §3): the paper's symmetric 2n set and the
+//! scaled unscented transform, with the per-viewpoint precomputation of §3.6.
+//!
+//! Sigma points that perturb only pose parameters leave the measurement at its
+//! mean, so their chain matrices `M_i` are constant for a viewpoint. With
+//! `Δ_i = M_i − M_0` and `X̃ = [X; 1]`, each point costs one 3x4 product per
+//! pose sigma point:
+//! `ŷ = M_0 X̃ + W Σ Δ_i X̃`, `Γ = (W_0c + 6W) d_0 d_0ᵀ + W Σ d_i d_iᵀ + R_0 Γ_c R_0ᵀ`
+//! with `d_i = (Δ_i − Δ̄) X̃`, `d_0 = −Δ̄ X̃`, `Δ̄ = W Σ Δ_i`. The six measurement
+//! sigma points collapse into the last two terms exactly.
+
+use super::chain::{Gaussian3, UncertainChain, UncertainPoint};
+use super::{sqrt_factor, Propagator};
+use crate::geometry::{Matrix3, Pose, Vector3};
+use nalgebra::{Matrix3x4, Point3, Vector4};
+
+/// Which sigma-point set.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SigmaSet {
+    /// The paper's set (Julier–Uhlmann, κ = 0): `±√n` columns, weights `1/2n`,
+    /// no centre point.
+    Paper,
+    /// Wan–van der Merwe scaled set: `λ = α²(n + κ) − n`, spread `√(n + λ)`,
+    /// centre weights `λ/(n+λ)` (mean) and `λ/(n+λ) + 1 − α² + β` (covariance).
+    Scaled { alpha: f64, beta: f64, kappa: f64 },
+}
+
+/// Weights and spread of a set for `n` uncertain dimensions.
+#[derive(Clone, Copy, Debug)]
+struct Weights {
+    spread: f64,
+    w: f64,
+    w0c: f64,
+}
+
+impl SigmaSet {
+    fn weights(self, n: usize) -> Weights {
+        let n = n as f64;
+        match self {
+            SigmaSet::Paper => Weights {
+                spread: n.sqrt(),
+                w: 1.0 / (2.0 * n),
+                w0c: 0.0,
+            },
+            SigmaSet::Scaled { alpha, beta, kappa } => {
+                let lambda = alpha * alpha * (n + kappa) - n;
+                Weights {
+                    spread: (n + lambda).sqrt(),
+                    w: 1.0 / (2.0 * (n + lambda)),
+                    w0c: lambda / (n + lambda) + 1.0 - alpha * alpha + beta,
+                }
+            }
+        }
+    }
+}
+
+/// The non-zero columns of a square root of a pose covariance: the directions
+/// the sigma points perturb (zero-variance parameters drop out, §3.5).
+fn pose_directions(covariance: &crate::geometry::Matrix6) -> Vec<crate::geometry::Vector6> {
+    let root = sqrt_factor(covariance);
+    let scale = root.amax();
+    root.column_iter()
+        .filter(|c| scale > 0.0 && c.amax() > 1e-12 * scale)
+        .map(|c| c.into_owned())
+        .collect()
+}
+
+/// Number of pose sigma directions of a chain (the paper's 18, or 12 when
+/// `R_scene = R_world`) plus the point's 3.
+pub fn sigma_dimension(chain: &UncertainChain) -> usize {
+    chain.links.iter().map(|l| pose_directions(&l.pose.covariance).len()).sum::<usize>() + 3
+}
+
+/// The chain matrix (3x4) with link `link` at `pose`.
+fn chain_matrix(chain: &UncertainChain, link: usize, pose: &Pose) -> Matrix3x4<f64> {
+    let iso = chain.evaluate(|i| if i == link { *pose } else { chain.links[i].pose.mean });
+    iso.to_homogeneous().fixed_view::<3, 4>(0, 0).into_owned()
+}
+
+/// The unscented transform with per-viewpoint precomputation.
+#[derive(Clone, Debug)]
+pub struct UnscentedPropagator {
+    m0: Matrix3x4<f64>,
+    rotation: Matrix3,
+    deltas: Vec<Matrix3x4<f64>>,
+    mean_delta: Matrix3x4<f64>,
+    weights: Weights,
+    /// Number of sigma points, measurement ones included.
+    pub points: usize,
+}
+
+impl UnscentedPropagator {
+    /// Builds the pose sigma points' chain matrices for `chain`.
+    pub fn new(chain: &UncertainChain, set: SigmaSet) -> Self {
+        let n = sigma_dimension(chain);
+        let weights = set.weights(n);
+        let m0 = chain.nominal().to_homogeneous().fixed_view::<3, 4>(0, 0).into_owned();
+        let mut deltas = Vec::with_capacity(2 * (n - 3));
+        for (i, link) in chain.links.iter().enumerate() {
+            for column in pose_directions(&link.pose.covariance) {
+                for sign in [1.0, -1.0] {
+                    let pose = Pose::from_params(&(link.pose.mean.params() + column * (sign * weights.spread)));
+                    deltas.push(chain_matrix(chain, i, &pose) - m0);
+                }
+            }
+        }
+        let mean_delta = deltas.iter().fold(Matrix3x4::zeros(), |a, d| a + d) * weights.w;
+        let points = 2 * n + usize::from(matches!(set, SigmaSet::Scaled { .. }));
+        Self {
+            rotation: m0.fixed_view::<3, 3>(0, 0).into_owned(),
+            m0,
+            deltas,
+            mean_delta,
+            weights,
+            points,
+        }
+    }
+}
+
+impl Propagator for UnscentedPropagator {
+    fn name(&self) -> &'static str {
+        "unscented"
+    }
+
+    #[inline]
+    fn propagate(&self, point: &UncertainPoint) -> Gaussian3 {
+        let x = Vector4::new(point.mean.x, point.mean.y, point.mean.z, 1.0);
+        let shift = self.mean_delta * x;
+        let mean = self.m0 * x + shift;
+        let mut cov = shift * shift.transpose() * (self.weights.w0c + 6.0 * self.weights.w);
+        let mut spread = Matrix3::zeros();
+        for delta in &self.deltas {
+            let d = delta * x - shift;
+            spread += d * d.transpose();
+        }
+        cov += spread * self.weights.w + self.rotation * point.covariance * self.rotation.transpose();
+        Gaussian3 { mean, covariance: cov }
+    }
+}
+
+/// The textbook unscented transform: every sigma point of the full parameter
+/// vector evaluated through the exact chain (trigonometry per point). The
+/// reference for [`UnscentedPropagator`].
+pub fn unscented_naive(chain: &UncertainChain, point: &UncertainPoint, set: SigmaSet) -> Gaussian3 {
+    let n = sigma_dimension(chain);
+    let weights = set.weights(n);
+    let f = |link: Option<(usize, Pose)>, x: Vector3| -> Vector3 {
+        let iso = chain.evaluate(|i| match link {
+            Some((j, pose)) if j == i => pose,
+            _ => chain.links[i].pose.mean,
+        });
+        (iso * Point3::from(x)).coords
+    };
+    let mut outputs = Vec::with_capacity(2 * n);
+    for (i, link) in chain.links.iter().enumerate() {
+        for column in pose_directions(&link.pose.covariance) {
+            for sign in [1.0, -1.0] {
+                let pose = Pose::from_params(&(link.pose.mean.params() + column * (sign * weights.spread)));
+                outputs.push(f(Some((i, pose)), point.mean));
+            }
+        }
+    }
+    let root = sqrt_factor(&point.covariance);
+    for column in root.column_iter() {
+        for sign in [1.0, -1.0] {
+            outputs.push(f(None, point.mean + column * (sign * weights.spread)));
+        }
+    }
+    let centre = f(None, point.mean);
+    let w0m = 1.0 - weights.w * outputs.len() as f64;
+    let mean = outputs.iter().fold(centre * w0m, |a, y| a + y * weights.w);
+    let d0 = centre - mean;
+    let covariance = outputs
+        .iter()
+        .fold(d0 * d0.transpose() * weights.w0c, |a, y| a + (y - mean) * (y - mean).transpose() * weights.w);
+    Gaussian3 { mean, covariance }
+}
+
+#[cfg(test)]
+mod tests;
