@@ -67,7 +67,11 @@ pub struct UncertainChain {
 
 impl UncertainChain {
     /// The paper's chain `T_sw⁻¹ · T_rw · T_cr`.
-    pub fn paper(world_from_scene: UncertainPose, world_from_robot: UncertainPose, robot_from_camera: UncertainPose) -> Self {
+    pub fn paper(
+        world_from_scene: UncertainPose,
+        world_from_robot: UncertainPose,
+        robot_from_camera: UncertainPose,
+    ) -> Self {
         let link = |name: &str, pose, inverse| ChainLink {
             name: name.into(),
             pose,
@@ -92,7 +96,9 @@ impl UncertainChain {
         self.links
             .iter()
             .enumerate()
-            .fold(Isometry3::identity(), |acc, (i, link)| acc * link.transform(&pose(i)))
+            .fold(Isometry3::identity(), |acc, (i, link)| {
+                acc * link.transform(&pose(i))
+            })
     }
 
     /// Number of uncertain parameters: 6 per link plus 3 for the point.
@@ -151,9 +157,13 @@ pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainP
         let name = t.name.clone().unwrap_or_else(|| format!("transform {i}"));
         let mean = Pose::new(t.xyz, t.rpy);
         if !mean.is_finite() {
-            return Err(bad(format!("[[transform]] '{name}': xyz/rpy must be finite")));
+            return Err(bad(format!(
+                "[[transform]] '{name}': xyz/rpy must be finite"
+            )));
         }
-        let covariance = spec(&t.sigma, &t.covariance).to_matrix::<6>(&format!("[[transform]] '{name}'")).map_err(bad)?;
+        let covariance = spec(&t.sigma, &t.covariance)
+            .to_matrix::<6>(&format!("[[transform]] '{name}'"))
+            .map_err(bad)?;
         links.push(ChainLink {
             name,
             pose: UncertainPose { mean, covariance },
@@ -168,7 +178,9 @@ pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainP
             }
             Some(UncertainPoint {
                 mean: Vector3::from(p.xyz),
-                covariance: spec(&p.sigma, &p.covariance).to_matrix::<3>("[point]").map_err(bad)?,
+                covariance: spec(&p.sigma, &p.covariance)
+                    .to_matrix::<3>("[point]")
+                    .map_err(bad)?,
             })
         }
     };

@@ -23,7 +23,10 @@ pub fn anees_bounds(n: usize, dof: usize, level: f64) -> (f64, f64) {
     let n = n.max(1);
     let k = (dof * n) as f64;
     let tail = (1.0 - level) / 2.0;
-    (chi_square_quantile(k, tail) / n as f64, chi_square_quantile(k, 1.0 - tail) / n as f64)
+    (
+        chi_square_quantile(k, tail) / n as f64,
+        chi_square_quantile(k, 1.0 - tail) / n as f64,
+    )
 }
 
 /// The `p` quantile of χ²_k, by bisection on statrs' CDF to 1e-12 relative
@@ -48,7 +51,9 @@ pub fn chi_square_quantile(k: f64, p: f64) -> f64 {
 /// `P(χ²_dof ≤ k²)`: the expected share of errors inside the k-sigma ellipsoid
 /// (0.1987, 0.7385, 0.9707 for dof 3 and k = 1, 2, 3).
 pub fn expected_coverage(k: f64, dof: usize) -> f64 {
-    ChiSquared::new(dof as f64).expect("positive degrees of freedom").cdf(k * k)
+    ChiSquared::new(dof as f64)
+        .expect("positive degrees of freedom")
+        .cdf(k * k)
 }
 
 /// A consistency verdict over a set of independent errors.
@@ -84,7 +89,13 @@ impl ConsistencyReport {
                 }
             }
         }
-        let share = |c: usize| if n == 0 { f64::NAN } else { c as f64 / n as f64 };
+        let share = |c: usize| {
+            if n == 0 {
+                f64::NAN
+            } else {
+                c as f64 / n as f64
+            }
+        };
         Self {
             n,
             anees: if n == 0 { f64::NAN } else { sum / n as f64 },
@@ -130,7 +141,11 @@ pub fn forstner_distance(a: &Matrix3, b: &Matrix3) -> f64 {
     let l_inv = chol.l().try_inverse().unwrap_or_else(Matrix3::zeros);
     let m = l_inv * a * l_inv.transpose();
     let eig = (m + m.transpose()) * 0.5;
-    eig.symmetric_eigenvalues().iter().map(|l| l.max(f64::MIN_POSITIVE).ln().powi(2)).sum::<f64>().sqrt()
+    eig.symmetric_eigenvalues()
+        .iter()
+        .map(|l| l.max(f64::MIN_POSITIVE).ln().powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 #[cfg(test)]
@@ -140,9 +155,17 @@ mod tests {
     #[test]
     fn anees_bounds_match_the_tabulated_values() {
         // MATH.md §6.2 table (n = 3).
-        for (n, lo, hi) in [(25, 2.118, 4.034), (50, 2.360, 3.716), (100, 2.539, 3.499), (1000, 2.850, 3.154)] {
+        for (n, lo, hi) in [
+            (25, 2.118, 4.034),
+            (50, 2.360, 3.716),
+            (100, 2.539, 3.499),
+            (1000, 2.850, 3.154),
+        ] {
             let (l, h) = anees_bounds(n, 3, 0.95);
-            assert!((l - lo).abs() < 1.5e-3 && (h - hi).abs() < 1.5e-3, "n {n}: [{l}, {h}]");
+            assert!(
+                (l - lo).abs() < 1.5e-3 && (h - hi).abs() < 1.5e-3,
+                "n {n}: [{l}, {h}]"
+            );
         }
         let (l, h) = anees_bounds(1, 3, 0.95);
         assert!((l - 0.216).abs() < 1e-3 && (h - 9.348).abs() < 1e-3);
@@ -164,6 +187,13 @@ mod tests {
         assert!(kl_divergence(&Vector3::zeros(), &a, &Vector3::zeros(), &a).abs() < 1e-12);
         assert!(kl_divergence(&Vector3::zeros(), &a, &Vector3::x(), &a) > 0.0);
         assert!((relative_frobenius(&(a * 1.5), &a) - 0.5).abs() < 1e-12);
-        assert!((nees(&Vector3::new(1.0, 2.0, 0.0), &Matrix3::from_diagonal_element(4.0)) - 1.25).abs() < 1e-12);
+        assert!(
+            (nees(
+                &Vector3::new(1.0, 2.0, 0.0),
+                &Matrix3::from_diagonal_element(4.0)
+            ) - 1.25)
+                .abs()
+                < 1e-12
+        );
     }
 }

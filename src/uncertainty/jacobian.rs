@@ -7,15 +7,18 @@
 //! - `T(t)`: `B_p = P_i`, `B_α = P_i E(α_i)`, `σ = −1`, `c_i = P_i p_i + a_i`;
 //! - `T(t)⁻¹`: `B_p = −P_i R_iᵀ`, `B_α = P_i R_iᵀ E(α_i)`, `σ = +1`, `c_i = a_i`;
 //!
-//! and the point the block `P_{k+1}` (the whole chain's rotation). Everything
-//! but `X_out` is constant for a viewpoint, so [`JacobianPropagator`] keeps
-//! `K_i = blkdiag(B_p, B_α) Γ_i blkdiag(B_p, B_α)ᵀ` and each point costs a few
-//! 3x3 products: `J_i Γ_i J_iᵀ = K_pp + σ(K_pα [w]×ᵀ + [w]× K_αp) + [w]× K_αα [w]×ᵀ`.
+//! and the point the block `P_{k+1}` (the whole chain's rotation). With
+//! `K_i = blkdiag(B_p, B_α) Γ_i blkdiag(B_p, B_α)ᵀ` and `w = X_out − c_i`,
+//! `J_i Γ_i J_iᵀ = K_pp + σ(K_pα [w]×ᵀ + [w]× K_αp) + [w]× K_αα [w]×ᵀ`.
+//! `w = G_i X̃` is affine in the measured point, so the pose part of `Γ_s` is a
+//! quadratic form in `X̃` ([`QuadraticCovariance`]) that [`JacobianPropagator`]
+//! builds once per viewpoint.
 
 use super::chain::{Gaussian3, UncertainChain, UncertainPoint};
+use super::quadratic::QuadraticCovariance;
 use super::Propagator;
 use crate::geometry::{rpy_rate_matrix, skew, Isometry3, Matrix3, Matrix6, Vector3};
-use nalgebra::{DMatrix, Point3};
+use nalgebra::{DMatrix, Point3, Vector4};
 
 /// The per-viewpoint constants of one link.
 #[derive(Clone, Debug)]
@@ -64,10 +67,12 @@ pub fn chain_jacobian(chain: &UncertainChain, point: &Vector3) -> (Vector3, DMat
     for (i, block) in blocks.iter().enumerate() {
         let w = skew(&(out - block.centre));
         jac.fixed_view_mut::<3, 3>(0, 6 * i).copy_from(&block.b_p);
-        jac.fixed_view_mut::<3, 3>(0, 6 * i + 3).copy_from(&(w * block.b_alpha * block.sign));
+        jac.fixed_view_mut::<3, 3>(0, 6 * i + 3)
+            .copy_from(&(w * block.b_alpha * block.sign));
     }
     let n = 6 * blocks.len();
-    jac.fixed_view_mut::<3, 3>(0, n).copy_from(&nominal.rotation.to_rotation_matrix().into_inner());
+    jac.fixed_view_mut::<3, 3>(0, n)
+        .copy_from(&nominal.rotation.to_rotation_matrix().into_inner());
     (out, jac)
 }
 
@@ -78,9 +83,13 @@ pub fn jacobian_naive(chain: &UncertainChain, point: &UncertainPoint) -> Gaussia
     let n = chain.parameter_count();
     let mut gamma = DMatrix::zeros(n, n);
     for (i, link) in chain.links.iter().enumerate() {
-        gamma.view_mut((6 * i, 6 * i), (6, 6)).copy_from(&link.pose.covariance);
+        gamma
+            .view_mut((6 * i, 6 * i), (6, 6))
+            .copy_from(&link.pose.covariance);
     }
-    gamma.view_mut((n - 3, n - 3), (3, 3)).copy_from(&point.covariance);
+    gamma
+        .view_mut((n - 3, n - 3), (3, 3))
+        .copy_from(&point.covariance);
     let cov = &jac * gamma * jac.transpose();
     Gaussian3 {
         mean,
@@ -88,43 +97,51 @@ pub fn jacobian_naive(chain: &UncertainChain, point: &UncertainPoint) -> Gaussia
     }
 }
 
-/// First-order propagation with the link blocks built once per viewpoint.
+/// First-order propagation with the pose part of `Γ_s` built once per viewpoint.
 #[derive(Clone, Debug)]
 pub struct JacobianPropagator {
-    blocks: Vec<LinkBlock>,
     nominal: Isometry3,
     rotation: Matrix3,
+    pose_part: QuadraticCovariance,
 }
 
 impl JacobianPropagator {
-    /// Precomputes the chain's constant blocks; exact links drop out.
+    /// Precomputes the chain's quadratic form; exact links drop out.
     pub fn new(chain: &UncertainChain) -> Self {
         let (blocks, nominal) = link_blocks(chain);
-        let blocks = blocks
-            .into_iter()
+        let m0 = nominal.to_homogeneous();
+        let mut pose_part = QuadraticCovariance::default();
+        for (b, _) in blocks
+            .iter()
             .zip(&chain.links)
             .filter(|(_, link)| !link.pose.is_exact())
-            .map(|(b, _)| b)
-            .collect();
+        {
+            // w = G X̃ with G = [R_0 | t_0 − c]: [w]× = Σ_c X̃_c [g_c]×.
+            let columns: [Matrix3; 4] = std::array::from_fn(|c| {
+                let g = if c < 3 {
+                    m0.fixed_view::<3, 1>(0, c).into_owned()
+                } else {
+                    m0.fixed_view::<3, 1>(0, 3) - b.centre
+                };
+                skew(&g)
+            });
+            let k_pp = b.k.fixed_view::<3, 3>(0, 0).into_owned();
+            let k_pa = b.k.fixed_view::<3, 3>(0, 3).into_owned();
+            let k_aa = b.k.fixed_view::<3, 3>(3, 3).into_owned();
+            pose_part.add_term(3, 3, &k_pp);
+            for (c, a_c) in columns.iter().enumerate() {
+                let cross = k_pa * a_c.transpose();
+                pose_part.add_term(c, 3, &((cross + cross.transpose()) * b.sign));
+                for (d, a_d) in columns.iter().enumerate() {
+                    pose_part.add_term(c, d, &(a_c * k_aa * a_d.transpose()));
+                }
+            }
+        }
         Self {
-            blocks,
             nominal,
             rotation: nominal.rotation.to_rotation_matrix().into_inner(),
+            pose_part: pose_part.finish(),
         }
-    }
-
-    #[inline]
-    fn covariance_at(&self, out: &Vector3, point_covariance: &Matrix3) -> Matrix3 {
-        let mut cov = self.rotation * point_covariance * self.rotation.transpose();
-        for b in &self.blocks {
-            let w = skew(&(out - b.centre));
-            let k_pp = b.k.fixed_view::<3, 3>(0, 0);
-            let k_pa = b.k.fixed_view::<3, 3>(0, 3);
-            let k_aa = b.k.fixed_view::<3, 3>(3, 3);
-            let cross = k_pa * w.transpose();
-            cov += k_pp + (cross + cross.transpose()) * b.sign + w * k_aa * w.transpose();
-        }
-        cov
     }
 }
 
@@ -135,10 +152,11 @@ impl Propagator for JacobianPropagator {
 
     #[inline]
     fn propagate(&self, point: &UncertainPoint) -> Gaussian3 {
-        let mean = (self.nominal * Point3::from(point.mean)).coords;
+        let x = Vector4::new(point.mean.x, point.mean.y, point.mean.z, 1.0);
         Gaussian3 {
-            mean,
-            covariance: self.covariance_at(&mean, &point.covariance),
+            mean: (self.nominal * Point3::from(point.mean)).coords,
+            covariance: self.pose_part.evaluate(&x)
+                + self.rotation * point.covariance * self.rotation.transpose(),
         }
     }
 }
@@ -160,8 +178,16 @@ mod tests {
                         name: format!("link {i}"),
                         pose: UncertainPose {
                             mean: Pose::new(
-                                [rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)],
-                                [rng.random_range(-3.0..3.0), rng.random_range(-1.4..1.4), rng.random_range(-3.0..3.0)],
+                                [
+                                    rng.random_range(-1.0..1.0),
+                                    rng.random_range(-1.0..1.0),
+                                    rng.random_range(-1.0..1.0),
+                                ],
+                                [
+                                    rng.random_range(-3.0..3.0),
+                                    rng.random_range(-1.4..1.4),
+                                    rng.random_range(-3.0..3.0),
+                                ],
                             ),
                             covariance: a * a.transpose(),
                         },
@@ -177,14 +203,24 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
         for trial in 0..100 {
             let chain = random_chain(&mut rng, 1 + trial % 4);
-            let x = Vector3::new(rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0), rng.random_range(0.1..3.0));
+            let x = Vector3::new(
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+                rng.random_range(0.1..3.0),
+            );
             let (_, jac) = chain_jacobian(&chain, &x);
             let f = |params: &[f64]| -> Vector3 {
-                let iso = chain.evaluate(|i| Pose::from_params(&Vector6::from_column_slice(&params[6 * i..6 * i + 6])));
+                let iso = chain.evaluate(|i| {
+                    Pose::from_params(&Vector6::from_column_slice(&params[6 * i..6 * i + 6]))
+                });
                 let n = params.len();
                 (iso * Point3::new(params[n - 3], params[n - 2], params[n - 1])).coords
             };
-            let mut theta: Vec<f64> = chain.links.iter().flat_map(|l| l.pose.mean.params().iter().copied().collect::<Vec<_>>()).collect();
+            let mut theta: Vec<f64> = chain
+                .links
+                .iter()
+                .flat_map(|l| l.pose.mean.params().iter().copied().collect::<Vec<_>>())
+                .collect();
             theta.extend(x.iter());
             let h = 1e-6;
             for k in 0..theta.len() {
@@ -195,7 +231,10 @@ mod tests {
                 let fd = (f(&plus) - f(&minus)) / (2.0 * h);
                 let col = jac.column(k);
                 let err = (fd - col).norm();
-                assert!(err <= 1e-7 * fd.norm().max(1.0), "trial {trial} column {k}: {err:e}");
+                assert!(
+                    err <= 1e-7 * fd.norm().max(1.0),
+                    "trial {trial} column {k}: {err:e}"
+                );
             }
         }
     }
@@ -223,7 +262,14 @@ mod tests {
         // MATH.md §2 linear limit: angle variances zero.
         let pose = |xyz, rpy, s: f64| UncertainPose {
             mean: Pose::new(xyz, rpy),
-            covariance: Matrix6::from_diagonal(&Vector6::new(s * s, 4.0 * s * s, s * s, 0.0, 0.0, 0.0)),
+            covariance: Matrix6::from_diagonal(&Vector6::new(
+                s * s,
+                4.0 * s * s,
+                s * s,
+                0.0,
+                0.0,
+                0.0,
+            )),
         };
         let chain = UncertainChain::paper(
             pose([0.1, 0.2, 0.0], [0.0, 0.0, 0.3], 0.001),
@@ -241,7 +287,11 @@ mod tests {
         let expected = rsw.transpose() * tr(&chain.links[0].pose.covariance) * rsw
             + rsw.transpose() * tr(&chain.links[1].pose.covariance) * rsw
             + rsw.transpose() * rrw * tr(&chain.links[2].pose.covariance) * rrw.transpose() * rsw
-            + rsw.transpose() * rrw * rcr * point.covariance * (rsw.transpose() * rrw * rcr).transpose();
+            + rsw.transpose()
+                * rrw
+                * rcr
+                * point.covariance
+                * (rsw.transpose() * rrw * rcr).transpose();
         let got = JacobianPropagator::new(&chain).propagate(&point);
         assert!((got.covariance - expected).norm() < 1e-18);
     }

@@ -3,10 +3,12 @@
 //! statistics that check them.
 
 pub mod chain;
+pub mod compare;
 pub mod consistency;
 mod covariance;
 pub mod jacobian;
 pub mod monte_carlo;
+pub mod quadratic;
 pub mod unscented;
 
 pub use chain::{read_chain_file, ChainLink, Gaussian3, UncertainChain, UncertainPoint};
@@ -72,7 +74,11 @@ pub trait Propagator: Sync {
 }
 
 /// Propagates a whole scan in parallel (rayon) into `out`.
-pub fn propagate_scan(propagator: &dyn Propagator, points: &[UncertainPoint], out: &mut [Gaussian3]) {
+pub fn propagate_scan(
+    propagator: &dyn Propagator,
+    points: &[UncertainPoint],
+    out: &mut [Gaussian3],
+) {
     assert_eq!(points.len(), out.len(), "one output per point");
     out.par_chunks_mut(4096)
         .zip(points.par_chunks(4096))

@@ -10,8 +10,17 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha12Rng;
 
 /// Draws `samples` outputs of the exact chain with every parameter perturbed.
-pub fn monte_carlo_samples(chain: &UncertainChain, point: &UncertainPoint, samples: usize, rng: &mut impl Rng) -> Vec<Vector3> {
-    let roots: Vec<Matrix6> = chain.links.iter().map(|l| sqrt_factor(&l.pose.covariance)).collect();
+pub fn monte_carlo_samples(
+    chain: &UncertainChain,
+    point: &UncertainPoint,
+    samples: usize,
+    rng: &mut impl Rng,
+) -> Vec<Vector3> {
+    let roots: Vec<Matrix6> = chain
+        .links
+        .iter()
+        .map(|l| sqrt_factor(&l.pose.covariance))
+        .collect();
     let point_root = sqrt_factor(&point.covariance);
     (0..samples)
         .map(|_| {
@@ -34,7 +43,9 @@ pub fn monte_carlo_samples(chain: &UncertainChain, point: &UncertainPoint, sampl
 pub fn sample_moments(samples: &[Vector3]) -> Gaussian3 {
     let n = samples.len() as f64;
     let mean = samples.iter().fold(Vector3::zeros(), |a, s| a + s) / n;
-    let covariance = samples.iter().fold(Matrix3::zeros(), |a, s| a + (s - mean) * (s - mean).transpose()) / (n - 1.0);
+    let covariance = samples.iter().fold(Matrix3::zeros(), |a, s| {
+        a + (s - mean) * (s - mean).transpose()
+    }) / (n - 1.0);
     Gaussian3 { mean, covariance }
 }
 
@@ -67,9 +78,17 @@ impl Propagator for MonteCarloPropagator {
 
     fn propagate(&self, point: &UncertainPoint) -> Gaussian3 {
         let mut rng = ChaCha12Rng::seed_from_u64(self.seed);
-        let key = point.mean.iter().fold(0u64, |h, v| (h ^ v.to_bits()).wrapping_mul(0x100_0000_01B3));
+        let key = point
+            .mean
+            .iter()
+            .fold(0u64, |h, v| (h ^ v.to_bits()).wrapping_mul(0x100_0000_01B3));
         rng.set_stream(key);
-        sample_moments(&monte_carlo_samples(&self.chain, point, self.samples, &mut rng))
+        sample_moments(&monte_carlo_samples(
+            &self.chain,
+            point,
+            self.samples,
+            &mut rng,
+        ))
     }
 }
 

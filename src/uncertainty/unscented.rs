@@ -3,13 +3,18 @@
 //!
 //! Sigma points that perturb only pose parameters leave the measurement at its
 //! mean, so their chain matrices `M_i` are constant for a viewpoint. With
-//! `Δ_i = M_i − M_0` and `X̃ = [X; 1]`, each point costs one 3x4 product per
-//! pose sigma point:
-//! `ŷ = M_0 X̃ + W Σ Δ_i X̃`, `Γ = (W_0c + 6W) d_0 d_0ᵀ + W Σ d_i d_iᵀ + R_0 Γ_c R_0ᵀ`
-//! with `d_i = (Δ_i − Δ̄) X̃`, `d_0 = −Δ̄ X̃`, `Δ̄ = W Σ Δ_i`. The six measurement
-//! sigma points collapse into the last two terms exactly.
+//! `Δ_i = M_i − M_0` and `X̃ = [X; 1]`:
+//! `ŷ = M̄ X̃` with `M̄ = M_0 + Δ̄`, `Δ̄ = W Σ Δ_i`, and
+//! `Γ = (W_0c + 6W) d_0 d_0ᵀ + W Σ d_i d_iᵀ + R_0 Γ_c R_0ᵀ`
+//! with `d_i = D_i X̃`, `D_i = Δ_i − Δ̄`, `d_0 = −Δ̄ X̃` (the six measurement sigma
+//! points collapse into the `d_0` and `Γ_c` terms exactly).
+//!
+//! [DESIGN] Since every `D_i` is constant, the sum is a quadratic form in `X̃`
+//! ([`QuadraticCovariance`]), built once per viewpoint: a point then costs six
+//! 4x4 quadratic forms whatever the number of sigma points.
 
 use super::chain::{Gaussian3, UncertainChain, UncertainPoint};
+use super::quadratic::QuadraticCovariance;
 use super::{sqrt_factor, Propagator};
 use crate::geometry::{Matrix3, Pose, Vector3};
 use nalgebra::{Matrix3x4, Point3, Vector4};
@@ -68,50 +73,71 @@ fn pose_directions(covariance: &crate::geometry::Matrix6) -> Vec<crate::geometry
 /// Number of pose sigma directions of a chain (the paper's 18, or 12 when
 /// `R_scene = R_world`) plus the point's 3.
 pub fn sigma_dimension(chain: &UncertainChain) -> usize {
-    chain.links.iter().map(|l| pose_directions(&l.pose.covariance).len()).sum::<usize>() + 3
+    chain
+        .links
+        .iter()
+        .map(|l| pose_directions(&l.pose.covariance).len())
+        .sum::<usize>()
+        + 3
 }
 
 /// The chain matrix (3x4) with link `link` at `pose`.
 fn chain_matrix(chain: &UncertainChain, link: usize, pose: &Pose) -> Matrix3x4<f64> {
-    let iso = chain.evaluate(|i| if i == link { *pose } else { chain.links[i].pose.mean });
+    let iso = chain.evaluate(|i| {
+        if i == link {
+            *pose
+        } else {
+            chain.links[i].pose.mean
+        }
+    });
     iso.to_homogeneous().fixed_view::<3, 4>(0, 0).into_owned()
 }
 
 /// The unscented transform with per-viewpoint precomputation.
 #[derive(Clone, Debug)]
 pub struct UnscentedPropagator {
-    m0: Matrix3x4<f64>,
+    mean_matrix: Matrix3x4<f64>,
     rotation: Matrix3,
-    deltas: Vec<Matrix3x4<f64>>,
-    mean_delta: Matrix3x4<f64>,
-    weights: Weights,
+    quadratic: QuadraticCovariance,
     /// Number of sigma points, measurement ones included.
     pub points: usize,
 }
 
 impl UnscentedPropagator {
-    /// Builds the pose sigma points' chain matrices for `chain`.
+    /// Builds the pose sigma points' chain matrices for `chain` and folds them
+    /// into the per-viewpoint quadratic forms.
     pub fn new(chain: &UncertainChain, set: SigmaSet) -> Self {
         let n = sigma_dimension(chain);
         let weights = set.weights(n);
-        let m0 = chain.nominal().to_homogeneous().fixed_view::<3, 4>(0, 0).into_owned();
+        let m0 = chain
+            .nominal()
+            .to_homogeneous()
+            .fixed_view::<3, 4>(0, 0)
+            .into_owned();
         let mut deltas = Vec::with_capacity(2 * (n - 3));
         for (i, link) in chain.links.iter().enumerate() {
             for column in pose_directions(&link.pose.covariance) {
                 for sign in [1.0, -1.0] {
-                    let pose = Pose::from_params(&(link.pose.mean.params() + column * (sign * weights.spread)));
+                    let pose = Pose::from_params(
+                        &(link.pose.mean.params() + column * (sign * weights.spread)),
+                    );
                     deltas.push(chain_matrix(chain, i, &pose) - m0);
                 }
             }
         }
         let mean_delta = deltas.iter().fold(Matrix3x4::zeros(), |a, d| a + d) * weights.w;
+        let centre_weight = weights.w0c + 6.0 * weights.w;
+        let mut quadratic = QuadraticCovariance::default();
+        quadratic.add_outer(&mean_delta, centre_weight);
+        for delta in &deltas {
+            quadratic.add_outer(&(delta - mean_delta), weights.w);
+        }
+        let quadratic = quadratic.finish();
         let points = 2 * n + usize::from(matches!(set, SigmaSet::Scaled { .. }));
         Self {
+            mean_matrix: m0 + mean_delta,
             rotation: m0.fixed_view::<3, 3>(0, 0).into_owned(),
-            m0,
-            deltas,
-            mean_delta,
-            weights,
+            quadratic,
             points,
         }
     }
@@ -125,16 +151,11 @@ impl Propagator for UnscentedPropagator {
     #[inline]
     fn propagate(&self, point: &UncertainPoint) -> Gaussian3 {
         let x = Vector4::new(point.mean.x, point.mean.y, point.mean.z, 1.0);
-        let shift = self.mean_delta * x;
-        let mean = self.m0 * x + shift;
-        let mut cov = shift * shift.transpose() * (self.weights.w0c + 6.0 * self.weights.w);
-        let mut spread = Matrix3::zeros();
-        for delta in &self.deltas {
-            let d = delta * x - shift;
-            spread += d * d.transpose();
+        Gaussian3 {
+            mean: self.mean_matrix * x,
+            covariance: self.quadratic.evaluate(&x)
+                + self.rotation * point.covariance * self.rotation.transpose(),
         }
-        cov += spread * self.weights.w + self.rotation * point.covariance * self.rotation.transpose();
-        Gaussian3 { mean, covariance: cov }
     }
 }
 
@@ -155,7 +176,9 @@ pub fn unscented_naive(chain: &UncertainChain, point: &UncertainPoint, set: Sigm
     for (i, link) in chain.links.iter().enumerate() {
         for column in pose_directions(&link.pose.covariance) {
             for sign in [1.0, -1.0] {
-                let pose = Pose::from_params(&(link.pose.mean.params() + column * (sign * weights.spread)));
+                let pose = Pose::from_params(
+                    &(link.pose.mean.params() + column * (sign * weights.spread)),
+                );
                 outputs.push(f(Some((i, pose)), point.mean));
             }
         }
@@ -172,7 +195,9 @@ pub fn unscented_naive(chain: &UncertainChain, point: &UncertainPoint, set: Sigm
     let d0 = centre - mean;
     let covariance = outputs
         .iter()
-        .fold(d0 * d0.transpose() * weights.w0c, |a, y| a + (y - mean) * (y - mean).transpose() * weights.w);
+        .fold(d0 * d0.transpose() * weights.w0c, |a, y| {
+            a + (y - mean) * (y - mean).transpose() * weights.w
+        });
     Gaussian3 { mean, covariance }
 }
 

@@ -9,7 +9,14 @@ use rand::{Rng, SeedableRng};
 fn diag_pose(xyz: [f64; 3], rpy: [f64; 3], st: f64, sa: f64) -> UncertainPose {
     UncertainPose {
         mean: Pose::new(xyz, rpy),
-        covariance: Matrix6::from_diagonal(&Vector6::new(st * st, st * st, st * st, sa * sa, sa * sa, sa * sa)),
+        covariance: Matrix6::from_diagonal(&Vector6::new(
+            st * st,
+            st * st,
+            st * st,
+            sa * sa,
+            sa * sa,
+            sa * sa,
+        )),
     }
 }
 
@@ -32,17 +39,31 @@ fn point() -> UncertainPoint {
 #[test]
 fn precomputed_equals_naive_for_both_sets() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
-    for set in [SigmaSet::Paper, SigmaSet::Scaled { alpha: 0.5, beta: 2.0, kappa: 0.0 }] {
+    for set in [
+        SigmaSet::Paper,
+        SigmaSet::Scaled {
+            alpha: 0.5,
+            beta: 2.0,
+            kappa: 0.0,
+        },
+    ] {
         for _ in 0..20 {
             let chain = paper_chain(rng.random_range(1e-4..5e-3), rng.random_range(1e-3..0.1));
             let p = UncertainPoint {
-                mean: Vector3::new(rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5), rng.random_range(0.2..2.0)),
+                mean: Vector3::new(
+                    rng.random_range(-0.5..0.5),
+                    rng.random_range(-0.5..0.5),
+                    rng.random_range(0.2..2.0),
+                ),
                 ..point()
             };
             let naive = unscented_naive(&chain, &p, set);
             let fast = UnscentedPropagator::new(&chain, set).propagate(&p);
             assert!((naive.mean - fast.mean).norm() < 1e-12, "{set:?}");
-            assert!((naive.covariance - fast.covariance).norm() <= 1e-9 * naive.covariance.norm(), "{set:?}");
+            assert!(
+                (naive.covariance - fast.covariance).norm() <= 1e-9 * naive.covariance.norm(),
+                "{set:?}"
+            );
         }
     }
 }
@@ -56,7 +77,15 @@ fn exact_when_the_chain_is_linear_in_its_uncertain_parameters() {
     let lin = jacobian_naive(&chain, &point());
     assert!((ut.covariance - lin.covariance).norm() <= 1e-12 * lin.covariance.norm());
     assert!((ut.mean - lin.mean).norm() < 1e-14);
-    let scaled = UnscentedPropagator::new(&chain, SigmaSet::Scaled { alpha: 1e-3, beta: 2.0, kappa: 0.0 }).propagate(&point());
+    let scaled = UnscentedPropagator::new(
+        &chain,
+        SigmaSet::Scaled {
+            alpha: 1e-3,
+            beta: 2.0,
+            kappa: 0.0,
+        },
+    )
+    .propagate(&point());
     assert!((scaled.covariance - lin.covariance).norm() <= 1e-8 * lin.covariance.norm());
 }
 
@@ -68,7 +97,10 @@ fn forty_two_points_or_thirty_when_the_scene_frame_is_exact() {
     let mut exact_scene = chain.clone();
     exact_scene.links[0].pose = UncertainPose::exact(Pose::identity());
     assert_eq!(sigma_dimension(&exact_scene), 15);
-    assert_eq!(UnscentedPropagator::new(&exact_scene, SigmaSet::Paper).points, 30);
+    assert_eq!(
+        UnscentedPropagator::new(&exact_scene, SigmaSet::Paper).points,
+        30
+    );
     // Zero-variance parameters do not bias the covariance at linear order: the
     // result with R_scene = R_world matches the Jacobian as closely as before.
     let ut = UnscentedPropagator::new(&exact_scene, SigmaSet::Paper).propagate(&point());
@@ -111,13 +143,23 @@ fn matches_monte_carlo_within_its_standard_errors() {
     let nf = n as f64;
     for i in 0..3 {
         let se_mean = (mc.covariance[(i, i)] / nf).sqrt();
-        assert!((ut.mean[i] - mc.mean[i]).abs() < 5.0 * se_mean, "mean {i}: {} vs {}", ut.mean[i], mc.mean[i]);
+        assert!(
+            (ut.mean[i] - mc.mean[i]).abs() < 5.0 * se_mean,
+            "mean {i}: {} vs {}",
+            ut.mean[i],
+            mc.mean[i]
+        );
         for j in 0..3 {
             let c = &mc.covariance;
             let se = ((c[(i, j)].powi(2) + c[(i, i)] * c[(j, j)]) / (nf - 1.0)).sqrt();
             let diff = (ut.covariance[(i, j)] - c[(i, j)]).abs();
             let allowed = 5.0 * se + 0.01 * (c[(i, i)] * c[(j, j)]).sqrt();
-            assert!(diff < allowed, "cov {i}{j}: {:e} vs {:e} (SE {se:e})", ut.covariance[(i, j)], c[(i, j)]);
+            assert!(
+                diff < allowed,
+                "cov {i}{j}: {:e} vs {:e} (SE {se:e})",
+                ut.covariance[(i, j)],
+                c[(i, j)]
+            );
         }
     }
 }
@@ -149,13 +191,21 @@ fn covariance_is_symmetric_psd() {
             links: (0..3)
                 .map(|i| ChainLink {
                     name: i.to_string(),
-                    pose: diag_pose([0.2, 0.1, 0.3], [rng.random_range(-3.0..3.0), 0.3, 1.0], 0.003, rng.random_range(0.0..0.2)),
+                    pose: diag_pose(
+                        [0.2, 0.1, 0.3],
+                        [rng.random_range(-3.0..3.0), 0.3, 1.0],
+                        0.003,
+                        rng.random_range(0.0..0.2),
+                    ),
                     inverse: i == 0,
                 })
                 .collect(),
         };
         let g = UnscentedPropagator::new(&chain, SigmaSet::Paper).propagate(&point());
-        assert!((g.covariance - g.covariance.transpose()).norm() < 1e-15 * g.covariance.norm().max(1e-300));
+        assert!(
+            (g.covariance - g.covariance.transpose()).norm()
+                < 1e-15 * g.covariance.norm().max(1e-300)
+        );
         assert!(g.covariance.symmetric_eigenvalues().min() > 0.0);
     }
 }

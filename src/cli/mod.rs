@@ -1,13 +1,14 @@
 //! The command line: argument parsing, progress, and exit codes
 //! (0 ok, 1 a failed check, 2 bad input or usage).
 
+mod propagate;
+mod simulate;
+
 use crate::error::{Error, Result};
-use crate::experiment::{self, Experiment};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
-use std::time::Instant;
 
 /// Simulation-backed evaluation of uncertainty-aware occupancy maps.
 #[derive(Parser, Debug)]
@@ -23,10 +24,15 @@ enum Command {
     /// (error-drawn) sensor pose and write what the modeller receives (CSV, PLY,
     /// nominal chains with covariances) and, apart, the truth.
     Simulate(SimulateArgs),
+    /// Propagate one measurement through an uncertain transform chain with every
+    /// method (blind, Jacobian, unscented, Monte Carlo) and print each method's
+    /// scene-frame mean, 3x3 covariance and cost; or, with --sweep, reproduce the
+    /// paper's comparison over rotation sigmas (CSV + SVG).
+    Propagate(PropagateArgs),
 }
 
 #[derive(Args, Debug)]
-struct SimulateArgs {
+pub(crate) struct SimulateArgs {
     /// The experiment file (TOML).
     experiment: PathBuf,
     /// Output folder [default: results/<experiment>/scans].
@@ -43,8 +49,48 @@ struct SimulateArgs {
     quiet: bool,
 }
 
+#[derive(Args, Debug)]
+pub(crate) struct PropagateArgs {
+    /// The chain file (TOML; see README, "Chain file").
+    chain: PathBuf,
+    /// The measured point `x,y,z` in the last frame (m), replacing the file's
+    /// `[point]` mean (its covariance is kept; zero if the file has none).
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    point: Option<[f64; 3]>,
+    /// Monte Carlo draws.
+    #[arg(long, default_value_t = 10_000)]
+    samples: usize,
+    /// Monte Carlo seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Print JSON (the stable schema of README) instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Sweep every link's rotation sigma from 0.001 to 0.2 rad and write each
+    /// method's covariance error against Monte Carlo as CSV and SVG.
+    #[arg(long)]
+    sweep: bool,
+    /// Number of rotation sigmas in the sweep.
+    #[arg(long, default_value_t = 20)]
+    sweep_points: usize,
+    /// Output folder of the sweep [default: results/<chain file stem>_sweep].
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+fn parse_point(text: &str) -> std::result::Result<[f64; 3], String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
+        .collect::<std::result::Result<_, _>>()?;
+    match values.as_slice() {
+        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok([*x, *y, *z]),
+        _ => Err("expected three finite numbers x,y,z".into()),
+    }
+}
+
 /// Runs `f` on a rayon pool of `threads` workers (0: one per core).
-fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Result<T> {
+pub(crate) fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Result<T> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -52,7 +98,7 @@ fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Result
     Ok(pool.install(f))
 }
 
-fn progress_bar(len: usize, what: &str, quiet: bool) -> ProgressBar {
+pub(crate) fn progress_bar(len: usize, what: &str, quiet: bool) -> ProgressBar {
     let bar = ProgressBar::new(len as u64);
     if quiet || !std::io::stderr().is_terminal() {
         bar.set_draw_target(ProgressDrawTarget::hidden());
@@ -66,43 +112,6 @@ fn progress_bar(len: usize, what: &str, quiet: bool) -> ProgressBar {
     bar
 }
 
-fn simulate(args: SimulateArgs) -> Result<()> {
-    let experiment = Experiment::load(&args.experiment)?;
-    let seed = args.seed.unwrap_or(experiment.seed);
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| experiment::default_scan_dir(&experiment));
-    let bar = progress_bar(experiment.viewpoints.len(), "viewpoints", args.quiet);
-    let start = Instant::now();
-    let run = with_threads(args.threads, || {
-        experiment::simulate(&experiment, seed, |done| bar.set_position(done as u64))
-    })??;
-    bar.finish_and_clear();
-    let elapsed = start.elapsed().as_secs_f64();
-    experiment::write_atomically(&out, |dir| experiment::write_scans(dir, &experiment, &run))?;
-    let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
-    let hits: usize = run
-        .scans
-        .iter()
-        .map(|s| {
-            s.measurements
-                .iter()
-                .filter(|m| m.status == crate::sim::scan::BeamStatus::Hit)
-                .count()
-        })
-        .sum();
-    if !args.quiet {
-        eprintln!(
-            "simulated {} viewpoints, {beams} beams ({hits} hits) in {elapsed:.2} s ({:.2} M beams/s); wrote {}",
-            run.scans.len(),
-            beams as f64 / elapsed / 1e6,
-            out.display()
-        );
-    }
-    Ok(())
-}
-
 /// Parses the command line, runs the command, and returns the exit code.
 pub fn main() -> i32 {
     let cli = match Cli::try_parse() {
@@ -113,7 +122,8 @@ pub fn main() -> i32 {
         }
     };
     let result = match cli.command {
-        Command::Simulate(args) => simulate(args),
+        Command::Simulate(args) => simulate::run(args),
+        Command::Propagate(args) => propagate::run(args),
     };
     match result {
         Ok(()) => 0,
