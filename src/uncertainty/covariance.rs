@@ -85,9 +85,11 @@ pub fn check_covariance<const N: usize>(m: &SMatrix<f64, N, N>) -> Result<(), St
     Ok(())
 }
 
-/// A square root `L` with `L Lᵀ = m` for a valid (possibly singular) covariance,
-/// from the symmetric eigendecomposition, so that zero-variance directions
-/// are handled exactly (a Cholesky factor would fail on them).
+/// A square root `L` with `L Lᵀ = m` for a valid (possibly singular)
+/// covariance: the diagonal root of a diagonal matrix, the lower Cholesky
+/// factor of a positive-definite one (the paper's choice for sigma points), and
+/// for a singular full matrix the symmetric eigendecomposition, which handles
+/// zero-variance directions exactly where Cholesky fails.
 pub fn sqrt_factor<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
     if m.iter().all(|v| *v == 0.0) {
         return SMatrix::zeros();
@@ -101,6 +103,9 @@ pub fn sqrt_factor<const N: usize>(m: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N>
                 0.0
             }
         });
+    }
+    if let Some(chol) = m.cholesky() {
+        return chol.l();
     }
     let eig = SymmetricEigen::new(DMatrix::from_fn(N, N, |i, j| m[(i, j)]));
     let mut root = eig.eigenvectors;
@@ -172,5 +177,11 @@ mod tests {
         let m = Matrix3::new(1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.25);
         let l = sqrt_factor(&m);
         assert!((l * l.transpose() - m).norm() < 1e-12);
+        // Positive definite: the lower Cholesky factor.
+        let pd = Matrix3::new(4.0, 1.0, 0.0, 1.0, 3.0, 0.5, 0.0, 0.5, 2.0);
+        let l = sqrt_factor(&pd);
+        assert!((l * l.transpose() - pd).norm() < 1e-12);
+        assert_eq!(l[(0, 1)], 0.0);
+        assert_eq!(l[(1, 2)], 0.0);
     }
 }

@@ -258,6 +258,24 @@ mod tests {
     }
 
     #[test]
+    fn scan_propagation_fills_the_output_in_parallel_as_in_sequence() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        let chain = random_chain(&mut rng, 3);
+        let propagator = JacobianPropagator::new(&chain);
+        let points: Vec<UncertainPoint> = (0..10_000)
+            .map(|i| UncertainPoint {
+                mean: Vector3::new(i as f64 * 1e-4, 0.1, 1.0),
+                covariance: Matrix3::identity() * 1e-6,
+            })
+            .collect();
+        let mut parallel = vec![Gaussian3::default(); points.len()];
+        crate::uncertainty::propagate_scan(&propagator, &points, &mut parallel);
+        for (p, g) in points.iter().zip(&parallel) {
+            assert_eq!(*g, propagator.propagate(p));
+        }
+    }
+
+    #[test]
     fn translation_only_chain_is_linear_and_exact() {
         // MATH.md §2 linear limit: angle variances zero.
         let pose = |xyz, rpy, s: f64| UncertainPose {
