@@ -6,7 +6,7 @@
 //! 100 000-beam scan under 20 ms on one core. Run `cargo bench --bench propagate`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use sigmap::geometry::{Matrix3, Matrix6, Pose, Vector3, Vector6};
+use sigmap::geometry::{Matrix3, Pose, Vector3};
 use sigmap::uncertainty::jacobian::jacobian_naive;
 use sigmap::uncertainty::unscented::unscented_naive;
 use sigmap::uncertainty::{
@@ -17,17 +17,7 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 fn pose(xyz: [f64; 3], rpy: [f64; 3], st: f64, sa: f64) -> UncertainPose {
-    UncertainPose {
-        mean: Pose::new(xyz, rpy),
-        covariance: Matrix6::from_diagonal(&Vector6::new(
-            st * st,
-            st * st,
-            st * st,
-            sa * sa,
-            sa * sa,
-            sa * sa,
-        )),
-    }
+    UncertainPose::from_sigmas(Pose::new(xyz, rpy), [st, st, st, sa, sa, sa])
 }
 
 fn chain() -> UncertainChain {

@@ -1,20 +1,11 @@
 //! End-to-end runs of `sigmap propagate`: the JSON contract, the sweep files,
 //! and chain files written by `sigmap simulate`.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+mod common;
 
-fn sigmap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sigmap"))
-        .args(args)
-        .current_dir(root())
-        .output()
-        .expect("run sigmap")
-}
+use common::{sigmap, simulate_quickstart};
 
 const CHAIN: &str = r#"
 [[transform]]
@@ -166,14 +157,7 @@ fn sweep_writes_csv_and_svg() {
 fn chain_files_from_simulate_propagate() {
     let dir = tempfile::tempdir().unwrap();
     let scans = dir.path().join("scans");
-    let out = sigmap(&[
-        "simulate",
-        "experiments/quickstart.toml",
-        "--out",
-        scans.to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(out.status.success());
+    simulate_quickstart(&scans, &[]);
     let chain = scans.join("vp_001.chain.toml");
     let v = json(&sigmap(&[
         "propagate",

@@ -1,20 +1,12 @@
 //! End-to-end runs of `sigmap simulate`: determinism across thread counts,
 //! files that read back, and a clear exit-2 error for every kind of bad input.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Command;
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+mod common;
 
-fn sigmap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sigmap"))
-        .args(args)
-        .current_dir(root())
-        .output()
-        .expect("run sigmap")
-}
+use common::{root, sigmap, simulate_quickstart};
 
 fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     let mut out = Vec::new();
@@ -45,22 +37,7 @@ fn same_seed_gives_identical_bytes_with_one_and_two_threads() {
     let two = tmp.path().join("two");
     let other_seed = tmp.path().join("seed2");
     for (dir, threads, seed) in [(&one, "1", "7"), (&two, "2", "7"), (&other_seed, "2", "8")] {
-        let out = sigmap(&[
-            "simulate",
-            "experiments/quickstart.toml",
-            "--out",
-            dir.to_str().unwrap(),
-            "--threads",
-            threads,
-            "--seed",
-            seed,
-            "--quiet",
-        ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        simulate_quickstart(dir, &["--threads", threads, "--seed", seed]);
     }
     let a = files(&one);
     assert!(
@@ -75,14 +52,7 @@ fn same_seed_gives_identical_bytes_with_one_and_two_threads() {
 #[test]
 fn ply_cloud_matches_the_csv_points() {
     let tmp = tempfile::tempdir().unwrap();
-    let out = sigmap(&[
-        "simulate",
-        "experiments/quickstart.toml",
-        "--out",
-        tmp.path().to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(out.status.success());
+    simulate_quickstart(tmp.path(), &[]);
     let (origin, points) = sigmap::experiment::read_ply(&tmp.path().join("vp_002.ply")).unwrap();
     let mut reader = csv::Reader::from_path(tmp.path().join("vp_002.csv")).unwrap();
     let headers = reader.headers().unwrap().clone();
@@ -278,14 +248,7 @@ fn ply_reads_in_an_independent_reader() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
-    let out = sigmap(&[
-        "simulate",
-        "experiments/quickstart.toml",
-        "--out",
-        tmp.path().to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(out.status.success());
+    simulate_quickstart(tmp.path(), &[]);
     let ply = tmp.path().join("vp_000.ply");
     let script = "import sys; from plyfile import PlyData\n\
                   v = PlyData.read(sys.argv[1])['vertex']\n\

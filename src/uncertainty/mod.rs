@@ -39,6 +39,17 @@ impl UncertainPose {
         }
     }
 
+    /// A pose with independent parameter errors of standard deviations
+    /// `sigma` (x, y, z in m; roll, pitch, yaw in rad).
+    pub fn from_sigmas(mean: Pose, sigma: [f64; 6]) -> Self {
+        Self {
+            mean,
+            covariance: Matrix6::from_diagonal(&crate::geometry::Vector6::from(
+                sigma.map(|s| s * s),
+            )),
+        }
+    }
+
     /// True when the covariance is zero, so the pose drops out of propagation
     /// (the paper's 42 → 30 sigma points).
     pub fn is_exact(&self) -> bool {

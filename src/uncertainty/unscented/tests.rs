@@ -1,5 +1,4 @@
 use super::*;
-use crate::geometry::{Matrix6, Vector6};
 use crate::uncertainty::chain::ChainLink;
 use crate::uncertainty::jacobian::jacobian_naive;
 use crate::uncertainty::monte_carlo::{monte_carlo_samples, sample_moments};

@@ -1,0 +1,37 @@
+//! Helpers shared by the end-to-end tests.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// The repository root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Runs the `sigmap` binary from the repository root.
+pub fn sigmap(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sigmap"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .expect("run sigmap")
+}
+
+/// Simulates the quickstart into `dir` and checks it succeeded.
+#[allow(dead_code)] // not every test file simulates
+pub fn simulate_quickstart(dir: &std::path::Path, extra: &[&str]) {
+    let mut args = vec![
+        "simulate",
+        "experiments/quickstart.toml",
+        "--out",
+        dir.to_str().unwrap(),
+        "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    let out = sigmap(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
