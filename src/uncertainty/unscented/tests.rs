@@ -6,17 +6,7 @@ use crate::uncertainty::{JacobianPropagator, UncertainPose};
 use rand::{Rng, SeedableRng};
 
 fn diag_pose(xyz: [f64; 3], rpy: [f64; 3], st: f64, sa: f64) -> UncertainPose {
-    UncertainPose {
-        mean: Pose::new(xyz, rpy),
-        covariance: Matrix6::from_diagonal(&Vector6::new(
-            st * st,
-            st * st,
-            st * st,
-            sa * sa,
-            sa * sa,
-            sa * sa,
-        )),
-    }
+    UncertainPose::from_sigmas(Pose::new(xyz, rpy), [st, st, st, sa, sa, sa])
 }
 
 /// The paper's setup: scene registration, arm, hand-eye; σ_t in m, σ_α in rad.
