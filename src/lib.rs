@@ -14,6 +14,7 @@ pub mod cli;
 pub mod error;
 pub mod experiment;
 pub mod geometry;
+pub mod mapping;
 pub mod plot;
 pub mod sim;
 pub mod uncertainty;

@@ -1,0 +1,254 @@
+//! OctoMap's file formats (the project's OCTOMAP.md): `.ot` (full log-odds)
+//! and `.bt` (maximum likelihood, 2 bits per child), written and read.
+
+use super::octree::{Clamp, Octree};
+use crate::error::{Error, Result};
+use std::io::{BufRead, Read, Write};
+use std::path::Path;
+
+const OT_HEADER: &str = "# Octomap OcTree file";
+const BT_HEADER: &str = "# Octomap OcTree binary file";
+
+/// OctoMap's occupancy test: log-odds at or above 0 (`isNodeOccupied`).
+#[inline]
+pub fn is_occupied(log_odds: f32) -> bool {
+    log_odds >= 0.0
+}
+
+fn header(first: &str, size: usize, resolution: f64) -> String {
+    format!(
+        "{first}\n# (feel free to add / change comments, but leave the first line as it is!)\n#\n\
+         id OcTree\nsize {size}\nres {resolution}\ndata\n"
+    )
+}
+
+/// Known nodes of the tree (OctoMap's `size()`).
+fn count(tree: &Octree) -> usize {
+    tree.stats().nodes
+}
+
+/// The `.ot` bytes of a tree: per node its `f32` log-odds then a byte whose
+/// bit `i` says child `i` exists, depth first.
+pub fn to_ot(tree: &Octree) -> Vec<u8> {
+    let mut out = header(OT_HEADER, count(tree), tree.resolution()).into_bytes();
+    let (value, _) = tree.raw(tree.root());
+    if !value.is_nan() {
+        write_ot_node(tree, tree.root(), &mut out);
+    }
+    out
+}
+
+fn write_ot_node(tree: &Octree, node: usize, out: &mut Vec<u8>) {
+    let (value, children) = tree.raw(node);
+    out.extend_from_slice(&value.to_le_bytes());
+    let Some(block) = children else {
+        out.push(0);
+        return;
+    };
+    let mut mask = 0u8;
+    for i in 0..8 {
+        if !tree.raw(block + i).0.is_nan() {
+            mask |= 1 << i;
+        }
+    }
+    out.push(mask);
+    for i in 0..8 {
+        if mask & (1 << i) != 0 {
+            write_ot_node(tree, block + i, out);
+        }
+    }
+}
+
+/// The `.bt` bytes: the maximum-likelihood tree (occupied leaves at the
+/// clamp maximum, free ones at the minimum), pruned, 2 bits per child.
+pub fn to_bt(tree: &Octree, clamp: Clamp) -> Vec<u8> {
+    let mut ml = tree.clone();
+    ml.map_values(|v| if is_occupied(v) { clamp.max } else { clamp.min });
+    // OctoMap does not write a childless root: give it its eight children.
+    let (value, children) = ml.raw(ml.root());
+    if children.is_none() && !value.is_nan() {
+        let block = ml.raw_expand(ml.root());
+        for i in 0..8 {
+            ml.set_raw_value(block + i, value);
+        }
+    }
+    let (value, _) = ml.raw(ml.root());
+    let mut out = header(
+        BT_HEADER,
+        if value.is_nan() { 0 } else { count(&ml) },
+        ml.resolution(),
+    )
+    .into_bytes();
+    if !value.is_nan() {
+        write_bt_node(&ml, ml.root(), &mut out);
+    }
+    out
+}
+
+fn write_bt_node(tree: &Octree, node: usize, out: &mut Vec<u8>) {
+    let Some(block) = tree.raw(node).1 else {
+        return;
+    };
+    let mut bytes = [0u8; 2];
+    for i in 0..8 {
+        let (value, grandchildren) = tree.raw(block + i);
+        let code = if value.is_nan() {
+            0
+        } else if grandchildren.is_some() {
+            3
+        } else if is_occupied(value) {
+            2
+        } else {
+            1
+        };
+        bytes[i / 4] |= code << (2 * (i % 4));
+    }
+    out.extend_from_slice(&bytes);
+    for i in 0..8 {
+        if tree.raw(block + i).1.is_some() {
+            write_bt_node(tree, block + i, out);
+        }
+    }
+}
+
+/// Writes `.ot` or `.bt` by the file's extension.
+pub fn write_octree(path: &Path, tree: &Octree, clamp: Clamp) -> Result<()> {
+    let bytes = match path.extension().and_then(|e| e.to_str()) {
+        Some("ot") => to_ot(tree),
+        Some("bt") => to_bt(tree, clamp),
+        _ => return Err(Error::input(path, "an octree file must end in .bt or .ot")),
+    };
+    let mut file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    file.write_all(&bytes).map_err(|e| Error::io(path, e))
+}
+
+/// Reads a `.ot` or `.bt` file (by its first line). `.bt` leaves take the
+/// clamp bounds, as OctoMap's reader gives them.
+pub fn read_octree(path: &Path, clamp: Clamp) -> Result<Octree> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    parse(&bytes, clamp).map_err(|e| Error::input(path, e))
+}
+
+/// Parses the bytes of a `.ot` or `.bt` file.
+pub fn parse(bytes: &[u8], clamp: Clamp) -> std::result::Result<Octree, String> {
+    let mut reader = std::io::Cursor::new(bytes);
+    let mut first = String::new();
+    reader.read_line(&mut first).map_err(|e| e.to_string())?;
+    let binary = match first.trim_end() {
+        OT_HEADER => false,
+        BT_HEADER => true,
+        other => return Err(format!("not an OctoMap file (first line '{other}')")),
+    };
+    let (mut size, mut resolution, mut id) = (None, None, None);
+    loop {
+        let mut line = String::new();
+        if reader.read_line(&mut line).map_err(|e| e.to_string())? == 0 {
+            return Err("no `data` line".into());
+        }
+        let line = line.trim_end();
+        if line.starts_with('#') || line.is_empty() {
+            continue;
+        }
+        let (word, rest) = line.split_once(' ').unwrap_or((line, ""));
+        match word {
+            "id" => id = Some(rest.to_string()),
+            "size" => size = rest.trim().parse::<usize>().ok(),
+            "res" => resolution = rest.trim().parse::<f64>().ok(),
+            "data" => break,
+            _ => return Err(format!("unexpected header line '{line}'")),
+        }
+    }
+    if id.as_deref() != Some("OcTree") {
+        return Err(format!("tree type {id:?} is not OcTree"));
+    }
+    let resolution = resolution
+        .filter(|r| *r > 0.0)
+        .ok_or("missing or bad `res`")?;
+    let size = size.ok_or("missing or bad `size`")?;
+    let mut tree = Octree::new(resolution);
+    let mut body = Vec::new();
+    reader.read_to_end(&mut body).map_err(|e| e.to_string())?;
+    let mut cursor = 0usize;
+    if size > 0 {
+        let root = tree.root();
+        if binary {
+            tree.set_raw_value(root, 0.0);
+            read_bt_node(&mut tree, root, &body, &mut cursor, clamp)?;
+        } else {
+            read_ot_node(&mut tree, root, &body, &mut cursor)?;
+        }
+    }
+    if cursor != body.len() {
+        return Err(format!("{} bytes left after the tree", body.len() - cursor));
+    }
+    let read = if size == 0 { 0 } else { count(&tree) };
+    if read != size {
+        return Err(format!("header says {size} nodes, the data holds {read}"));
+    }
+    Ok(tree)
+}
+
+fn take<'a>(body: &'a [u8], cursor: &mut usize, n: usize) -> std::result::Result<&'a [u8], String> {
+    let slice = body
+        .get(*cursor..*cursor + n)
+        .ok_or("the data ends early")?;
+    *cursor += n;
+    Ok(slice)
+}
+
+fn read_ot_node(
+    tree: &mut Octree,
+    node: usize,
+    body: &[u8],
+    cursor: &mut usize,
+) -> std::result::Result<(), String> {
+    let value = f32::from_le_bytes(
+        take(body, cursor, 4)?
+            .try_into()
+            .map_err(|_| "short value")?,
+    );
+    tree.set_raw_value(node, value);
+    let mask = take(body, cursor, 1)?[0];
+    if mask != 0 {
+        let block = tree.raw_expand(node);
+        for i in 0..8 {
+            if mask & (1 << i) != 0 {
+                read_ot_node(tree, block + i, body, cursor)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn read_bt_node(
+    tree: &mut Octree,
+    node: usize,
+    body: &[u8],
+    cursor: &mut usize,
+    clamp: Clamp,
+) -> std::result::Result<(), String> {
+    let bytes = take(body, cursor, 2)?;
+    let codes: [u8; 8] = std::array::from_fn(|i| (bytes[i / 4] >> (2 * (i % 4))) & 3);
+    let block = tree.raw_expand(node);
+    for (i, code) in codes.iter().enumerate() {
+        match code {
+            1 => tree.set_raw_value(block + i, clamp.min),
+            2 => tree.set_raw_value(block + i, clamp.max),
+            3 => {
+                tree.set_raw_value(block + i, clamp.min);
+                read_bt_node(tree, block + i, body, cursor, clamp)?;
+            }
+            _ => {}
+        }
+    }
+    // Inner value: the max of the children, as OctoMap's reader computes it.
+    let max = (0..8)
+        .map(|i| tree.raw(block + i).0)
+        .filter(|v| !v.is_nan())
+        .fold(f32::NAN, f32::max);
+    tree.set_raw_value(node, max);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

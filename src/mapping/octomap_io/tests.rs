@@ -1,0 +1,85 @@
+use super::*;
+use crate::mapping::octree::{Key, LOG_ODDS_HIT, LOG_ODDS_MISS};
+use rand::{Rng, SeedableRng};
+
+/// A tree with free space, occupied clusters and pruned blocks.
+pub(crate) fn sample_tree() -> Octree {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let mut tree = Octree::new(0.05);
+    for _ in 0..3000 {
+        let key = Key([
+            32760 + rng.random_range(0..24),
+            32760 + rng.random_range(0..24),
+            32766 + rng.random_range(0..6),
+        ]);
+        let delta = if key.0[2] > 32769 {
+            LOG_ODDS_HIT
+        } else {
+            LOG_ODDS_MISS
+        };
+        tree.update(&key, delta, Clamp::OCTOMAP);
+    }
+    tree.update_region(
+        &Key([32000, 32000, 32000]),
+        12,
+        LOG_ODDS_MISS,
+        Clamp::OCTOMAP,
+    );
+    tree
+}
+
+#[test]
+fn ot_round_trip_is_identical() {
+    let tree = sample_tree();
+    let bytes = to_ot(&tree);
+    let back = parse(&bytes, Clamp::OCTOMAP).unwrap();
+    assert_eq!(back, tree);
+    assert_eq!(to_ot(&back), bytes);
+    assert!(String::from_utf8_lossy(&bytes[..200]).contains("id OcTree\nsize "));
+}
+
+#[test]
+fn bt_round_trip_gives_the_maximum_likelihood_tree() {
+    let tree = sample_tree();
+    let bytes = to_bt(&tree, Clamp::OCTOMAP);
+    let back = parse(&bytes, Clamp::OCTOMAP).unwrap();
+    let mut ml = tree.clone();
+    ml.map_values(|v| {
+        if is_occupied(v) {
+            Clamp::OCTOMAP.max
+        } else {
+            Clamp::OCTOMAP.min
+        }
+    });
+    assert_eq!(back, ml);
+    assert_eq!(to_bt(&back, Clamp::OCTOMAP), bytes);
+    // Maximum likelihood prunes further than the full tree.
+    assert!(ml.stats().nodes <= tree.stats().nodes);
+}
+
+#[test]
+fn single_leaf_and_empty_trees() {
+    let empty = Octree::new(0.1);
+    assert_eq!(parse(&to_ot(&empty), Clamp::OCTOMAP).unwrap(), empty);
+    assert_eq!(
+        parse(&to_bt(&empty, Clamp::OCTOMAP), Clamp::OCTOMAP).unwrap(),
+        empty
+    );
+    let mut whole = Octree::new(0.1);
+    whole.update_region(&Key([0, 0, 0]), 0, 1.0, Clamp::OCTOMAP);
+    let back = parse(&to_bt(&whole, Clamp::OCTOMAP), Clamp::OCTOMAP).unwrap();
+    assert_eq!(back.query(&Key([123, 4, 5]), 16), Some(Clamp::OCTOMAP.max));
+}
+
+#[test]
+fn corrupt_files_are_rejected() {
+    let bytes = to_ot(&sample_tree());
+    assert!(parse(&bytes[..bytes.len() - 3], Clamp::OCTOMAP)
+        .unwrap_err()
+        .contains("ends early"));
+    let text = String::from_utf8_lossy(&bytes).replacen("size ", "size 1", 1);
+    assert!(parse(text.as_bytes(), Clamp::OCTOMAP).is_err());
+    assert!(parse(b"hello\n", Clamp::OCTOMAP)
+        .unwrap_err()
+        .contains("not an OctoMap file"));
+}

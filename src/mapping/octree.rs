@@ -1,0 +1,440 @@
+//! A sparse probabilistic octree in log-odds, laid out like OctoMap's
+//! (MATH.md §5.2; the project's OCTOMAP.md): fixed depth 16, per axis
+//! `key = floor(coord / res) + 32768`, the child at depth `d` chosen by bit
+//! `15 − d` of the keys (bit 0 from x, 1 from y, 2 from z). An absent node is
+//! unknown; an inner node holds the maximum of its children; eight equal leaf
+//! children are pruned into their parent.
+//!
+//! Storage: one pool of 8-byte nodes (`f32` log-odds, `u32` index of a block of
+//! eight children); an unknown child slot holds NaN. Freed blocks are reused.
+
+use crate::geometry::Point3;
+
+/// Depth of the finest level.
+pub const DEPTH: u8 = 16;
+const CENTER: i64 = 1 << 15;
+const NO_CHILDREN: u32 = u32::MAX;
+
+/// Integer cell coordinates at the finest level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Key(pub [u16; 3]);
+
+impl Key {
+    /// The child index (0–7) taken at depth `depth` (0 = root).
+    #[inline]
+    pub fn child_at(&self, depth: u8) -> usize {
+        let bit = 15 - depth as u32;
+        (((self.0[0] >> bit) & 1)
+            | (((self.0[1] >> bit) & 1) << 1)
+            | (((self.0[2] >> bit) & 1) << 2)) as usize
+    }
+
+    /// A 48-bit packing, for hashing and sorting.
+    #[inline]
+    pub fn packed(&self) -> u64 {
+        self.0[0] as u64 | (self.0[1] as u64) << 16 | (self.0[2] as u64) << 32
+    }
+
+    /// The inverse of [`Key::packed`].
+    #[inline]
+    pub fn unpack(v: u64) -> Self {
+        Key([v as u16, (v >> 16) as u16, (v >> 32) as u16])
+    }
+}
+
+/// How log-odds are bounded after an update (MATH.md §4.6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clamp {
+    /// Lower bound (OctoMap: −2.0, p = 0.1192).
+    pub min: f32,
+    /// Upper bound (OctoMap: +3.5, p = 0.971).
+    pub max: f32,
+}
+
+/// `ln(p / (1 − p))` in `f32`, as OctoMap computes its parameters.
+pub fn logodds(p: f64) -> f32 {
+    (p / (1.0 - p)).ln() as f32
+}
+
+/// OctoMap's hit update, `logodds(0.7)` = 0.8473 (MATH.md §4.2), bit-exact.
+pub const LOG_ODDS_HIT: f32 = f32::from_bits(0x3f58_e883);
+/// OctoMap's miss update, `logodds(0.4)` = −0.4055, bit-exact.
+pub const LOG_ODDS_MISS: f32 = f32::from_bits(0xbecf_991f);
+
+impl Clamp {
+    /// OctoMap's defaults, `[logodds(0.1192), logodds(0.971)]` = [−2.00003, 3.51103]:
+    /// the values its `.bt` reader gives free and occupied leaves.
+    pub const OCTOMAP: Clamp = Clamp {
+        min: f32::from_bits(0xc000_0075),
+        max: f32::from_bits(0x4060_b4ba),
+    };
+    /// No map-level clamp (the paper's mode; per-value clamping happens in the OPDF).
+    pub const NONE: Clamp = Clamp {
+        min: f32::NEG_INFINITY,
+        max: f32::INFINITY,
+    };
+
+    #[inline]
+    fn apply(&self, v: f32) -> f32 {
+        v.clamp(self.min, self.max)
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Node {
+    value: f32,
+    children: u32,
+}
+
+const UNKNOWN: Node = Node {
+    value: f32::NAN,
+    children: NO_CHILDREN,
+};
+
+/// A leaf as reported by [`Octree::leaves`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Leaf {
+    /// The smallest key inside the leaf.
+    pub key: Key,
+    /// Its depth (16 = finest voxel).
+    pub depth: u8,
+    /// Its log-odds.
+    pub value: f32,
+}
+
+/// Counts and memory of a tree.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TreeStats {
+    /// Known nodes (the root included).
+    pub nodes: usize,
+    /// Known nodes without children.
+    pub leaves: usize,
+    /// Nodes with children.
+    pub inner: usize,
+    /// Bytes held by the node pool (capacity included).
+    pub bytes: usize,
+}
+
+/// The probabilistic octree.
+#[derive(Clone)]
+pub struct Octree {
+    resolution: f64,
+    nodes: Vec<Node>,
+    free_blocks: Vec<u32>,
+}
+
+impl std::fmt::Debug for Octree {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "Octree {{ resolution: {}, {:?} }}",
+            self.resolution,
+            self.stats()
+        )
+    }
+}
+
+impl PartialEq for Octree {
+    /// Two trees are equal when they hold the same leaves (pool layout aside).
+    fn eq(&self, other: &Self) -> bool {
+        self.resolution == other.resolution && self.leaves() == other.leaves()
+    }
+}
+
+impl Octree {
+    /// An empty (all unknown) tree with the given finest voxel edge (m).
+    pub fn new(resolution: f64) -> Self {
+        assert!(
+            resolution > 0.0 && resolution.is_finite(),
+            "resolution must be positive"
+        );
+        Self {
+            resolution,
+            nodes: vec![UNKNOWN],
+            free_blocks: Vec::new(),
+        }
+    }
+
+    /// The finest voxel edge (m).
+    pub fn resolution(&self) -> f64 {
+        self.resolution
+    }
+
+    /// The edge of a node at `depth` (m).
+    pub fn node_size(&self, depth: u8) -> f64 {
+        self.resolution * (1u32 << (DEPTH - depth)) as f64
+    }
+
+    /// The key of the finest cell containing `p`, if inside the tree's cube.
+    #[inline]
+    pub fn key(&self, p: &Point3) -> Option<Key> {
+        let mut k = [0u16; 3];
+        for (axis, out) in k.iter_mut().enumerate() {
+            let v = (p[axis] / self.resolution).floor();
+            if !v.is_finite() {
+                return None;
+            }
+            let v = v as i64 + CENTER;
+            if !(0..(1 << 16)).contains(&v) {
+                return None;
+            }
+            *out = v as u16;
+        }
+        Some(Key(k))
+    }
+
+    /// The centre of the node at `depth` containing `key`.
+    pub fn center(&self, key: &Key, depth: u8) -> Point3 {
+        let shift = DEPTH - depth;
+        let half = if shift == 0 {
+            0.5
+        } else {
+            (1u32 << (shift - 1)) as f64
+        };
+        let c = |k: u16| {
+            ((((k as i64) >> shift) << shift) - CENTER) as f64 * self.resolution
+                + half * self.resolution
+        };
+        Point3::new(c(key.0[0]), c(key.0[1]), c(key.0[2]))
+    }
+
+    fn alloc_block(&mut self, fill: Node) -> u32 {
+        if let Some(block) = self.free_blocks.pop() {
+            self.nodes[block as usize..block as usize + 8].fill(fill);
+            block
+        } else {
+            let block = self.nodes.len() as u32;
+            self.nodes.extend_from_slice(&[fill; 8]);
+            block
+        }
+    }
+
+    /// Gives `node` children: copies of its value (a pruned leaf) or unknown.
+    fn expand(&mut self, node: usize) -> u32 {
+        let fill = Node {
+            value: self.nodes[node].value,
+            children: NO_CHILDREN,
+        };
+        let block = self.alloc_block(fill);
+        self.nodes[node].children = block;
+        block
+    }
+
+    /// Max of the known children into `node`; prunes eight equal leaves.
+    fn refresh(&mut self, node: usize) {
+        let block = self.nodes[node].children;
+        if block == NO_CHILDREN {
+            return;
+        }
+        let children = &self.nodes[block as usize..block as usize + 8];
+        let first = children[0];
+        let prunable = first.children == NO_CHILDREN
+            && !first.value.is_nan()
+            && children
+                .iter()
+                .all(|c| c.children == NO_CHILDREN && c.value == first.value);
+        if prunable {
+            self.nodes[node] = Node {
+                value: first.value,
+                children: NO_CHILDREN,
+            };
+            self.free_blocks.push(block);
+            return;
+        }
+        let max = children
+            .iter()
+            .map(|c| c.value)
+            .filter(|v| !v.is_nan())
+            .fold(f32::NAN, f32::max);
+        self.nodes[node].value = max;
+    }
+
+    /// Adds `delta` to the finest cell `key` (unknown counts as 0), clamps.
+    pub fn update(&mut self, key: &Key, delta: f32, clamp: Clamp) {
+        let mut path = [0usize; DEPTH as usize];
+        let mut node = 0usize;
+        for depth in 0..DEPTH {
+            path[depth as usize] = node;
+            let mut block = self.nodes[node].children;
+            if block == NO_CHILDREN {
+                let current = self.nodes[node].value;
+                // A pruned leaf already at the target value (clamped): nothing changes.
+                if !current.is_nan() && clamp.apply(current + delta) == current {
+                    return;
+                }
+                block = self.expand(node);
+            }
+            node = block as usize + key.child_at(depth);
+        }
+        let leaf = &mut self.nodes[node];
+        let base = if leaf.value.is_nan() { 0.0 } else { leaf.value };
+        leaf.value = clamp.apply(base + delta);
+        for depth in (0..DEPTH).rev() {
+            self.refresh(path[depth as usize]);
+        }
+    }
+
+    /// Adds `delta` to every cell of the node at `depth` containing `key`,
+    /// unknown cells included (they start at 0); keeps the tree coarse where
+    /// it already is.
+    pub fn update_region(&mut self, key: &Key, depth: u8, delta: f32, clamp: Clamp) {
+        let mut path = [0usize; DEPTH as usize];
+        let mut node = 0usize;
+        for d in 0..depth {
+            path[d as usize] = node;
+            let mut block = self.nodes[node].children;
+            if block == NO_CHILDREN {
+                block = self.expand(node);
+            }
+            node = block as usize + key.child_at(d);
+        }
+        self.add_subtree(node, delta, clamp);
+        for d in (0..depth).rev() {
+            self.refresh(path[d as usize]);
+        }
+    }
+
+    fn add_subtree(&mut self, node: usize, delta: f32, clamp: Clamp) {
+        let block = self.nodes[node].children;
+        if block == NO_CHILDREN {
+            let v = self.nodes[node].value;
+            self.nodes[node].value = clamp.apply(if v.is_nan() { delta } else { v + delta });
+            return;
+        }
+        for child in block as usize..block as usize + 8 {
+            self.add_subtree(child, delta, clamp);
+        }
+        self.refresh(node);
+    }
+
+    /// The log-odds of the node at `depth` (or the coarser leaf) containing
+    /// `key`; `None` when unknown. An inner node answers the max of its children.
+    pub fn query(&self, key: &Key, depth: u8) -> Option<f32> {
+        let mut node = 0usize;
+        for d in 0..depth {
+            let block = self.nodes[node].children;
+            if block == NO_CHILDREN {
+                break;
+            }
+            node = block as usize + key.child_at(d);
+        }
+        let v = self.nodes[node].value;
+        (!v.is_nan()).then_some(v)
+    }
+
+    /// The log-odds at a point, at the finest level.
+    pub fn value_at(&self, p: &Point3) -> Option<f32> {
+        self.key(p).and_then(|k| self.query(&k, DEPTH))
+    }
+
+    /// Every known leaf, depth first in child order (deterministic).
+    pub fn leaves(&self) -> Vec<Leaf> {
+        let mut out = Vec::new();
+        self.visit_leaves(|leaf| out.push(leaf));
+        out
+    }
+
+    /// Calls `f` on every known leaf, depth first in child order.
+    pub fn visit_leaves(&self, mut f: impl FnMut(Leaf)) {
+        let mut stack = vec![(0usize, 0u8, [0u16; 3])];
+        while let Some((node, depth, key)) = stack.pop() {
+            let n = self.nodes[node];
+            if n.children == NO_CHILDREN {
+                if !n.value.is_nan() {
+                    f(Leaf {
+                        key: Key(key),
+                        depth,
+                        value: n.value,
+                    });
+                }
+                continue;
+            }
+            let bit = 15 - depth as u32;
+            for i in (0..8usize).rev() {
+                let mut k = key;
+                for (axis, kk) in k.iter_mut().enumerate() {
+                    *kk |= (((i >> axis) & 1) as u16) << bit;
+                }
+                stack.push((n.children as usize + i, depth + 1, k));
+            }
+        }
+    }
+
+    /// Node counts and pool memory.
+    pub fn stats(&self) -> TreeStats {
+        let (mut nodes, mut leaves, mut inner) = (0, 0, 0);
+        let mut stack = vec![0usize];
+        while let Some(node) = stack.pop() {
+            let n = self.nodes[node];
+            if n.value.is_nan() && n.children == NO_CHILDREN {
+                continue;
+            }
+            nodes += 1;
+            if n.children == NO_CHILDREN {
+                leaves += 1;
+            } else {
+                inner += 1;
+                stack.extend(n.children as usize..n.children as usize + 8);
+            }
+        }
+        TreeStats {
+            nodes,
+            leaves,
+            inner,
+            bytes: self.nodes.capacity() * std::mem::size_of::<Node>()
+                + self.free_blocks.capacity() * 4,
+        }
+    }
+
+    /// Replaces every leaf value by `f(value)` (for example, maximum
+    /// likelihood), then prunes what became equal.
+    pub fn map_values(&mut self, f: impl Fn(f32) -> f32) {
+        self.map_node(0, &f);
+    }
+
+    fn map_node(&mut self, node: usize, f: &impl Fn(f32) -> f32) {
+        let block = self.nodes[node].children;
+        if block == NO_CHILDREN {
+            let v = self.nodes[node].value;
+            if !v.is_nan() {
+                self.nodes[node].value = f(v);
+            }
+            return;
+        }
+        for child in block as usize..block as usize + 8 {
+            self.map_node(child, f);
+        }
+        self.refresh(node);
+    }
+
+    // --- raw access for the file formats and the merge -------------------
+
+    /// The root's index.
+    pub(crate) fn root(&self) -> usize {
+        0
+    }
+
+    /// A node's value (NaN: unknown) and children block.
+    pub(crate) fn raw(&self, node: usize) -> (f32, Option<usize>) {
+        let n = self.nodes[node];
+        (
+            n.value,
+            (n.children != NO_CHILDREN).then_some(n.children as usize),
+        )
+    }
+
+    /// Sets a node's value (file reading).
+    pub(crate) fn set_raw_value(&mut self, node: usize, value: f32) {
+        self.nodes[node].value = value;
+    }
+
+    /// Gives a node eight unknown children (file reading).
+    pub(crate) fn raw_expand(&mut self, node: usize) -> usize {
+        let block = self.alloc_block(UNKNOWN);
+        self.nodes[node].children = block;
+        block as usize
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,131 @@
+use super::*;
+use rand::{Rng, SeedableRng};
+use std::collections::HashMap;
+
+#[test]
+fn keys_and_centres_follow_octomap() {
+    let tree = Octree::new(0.05);
+    let k = tree.key(&Point3::new(0.01, -0.01, 0.12)).unwrap();
+    assert_eq!(k, Key([32768, 32767, 32770]));
+    let c = tree.center(&k, DEPTH);
+    assert!((c - Point3::new(0.025, -0.025, 0.125)).norm() < 1e-12);
+    // The depth-15 node holding it spans 0.1 m, from key 32768 (x) and 32766 (y).
+    let c15 = tree.center(&k, 15);
+    assert!((c15 - Point3::new(0.05, -0.05, 0.15)).norm() < 1e-12);
+    assert_eq!(k.child_at(15), 2);
+    assert!(tree.key(&Point3::new(1e9, 0.0, 0.0)).is_none());
+    assert_eq!(Key::unpack(k.packed()), k);
+}
+
+/// The reference: a map of finest cells, no pruning, no inner nodes.
+fn reference_query(map: &HashMap<Key, f32>, key: &Key, depth: u8) -> Option<f32> {
+    let shift = DEPTH - depth;
+    map.iter()
+        .filter(|(k, _)| (0..3).all(|a| (k.0[a] as u32) >> shift == (key.0[a] as u32) >> shift))
+        .map(|(_, v)| *v)
+        .fold(None, |acc: Option<f32>, v| {
+            Some(acc.map_or(v, |a| a.max(v)))
+        })
+}
+
+#[test]
+fn pruned_tree_answers_every_query_like_the_unpruned_reference() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let mut tree = Octree::new(0.1);
+    let mut map: HashMap<Key, f32> = HashMap::new();
+    // Clustered updates so that whole blocks fill and prune.
+    for _ in 0..6000 {
+        let key = Key([
+            32768 + rng.random_range(0..8),
+            32768 + rng.random_range(0..8),
+            32760 + rng.random_range(0..4),
+        ]);
+        let delta = if rng.random_bool(0.9) { 0.85 } else { -0.4 };
+        tree.update(&key, delta, Clamp::OCTOMAP);
+        let v = map.entry(key).or_insert(0.0);
+        *v = (*v + delta).clamp(Clamp::OCTOMAP.min, Clamp::OCTOMAP.max);
+    }
+    let stats = tree.stats();
+    assert!(
+        stats.leaves < map.len(),
+        "saturated blocks must prune: {stats:?}"
+    );
+    for x in 32766..32778u16 {
+        for y in 32766..32778u16 {
+            for z in 32758..32766u16 {
+                let key = Key([x, y, z]);
+                for depth in [16u8, 15, 14, 13, 0] {
+                    assert_eq!(
+                        tree.query(&key, depth),
+                        reference_query(&map, &key, depth),
+                        "{key:?} at depth {depth}"
+                    );
+                }
+            }
+        }
+    }
+    // Every reported leaf covers cells of one value.
+    let mut covered = 0usize;
+    tree.visit_leaves(|leaf| covered += 1usize << (3 * (DEPTH - leaf.depth) as usize));
+    assert_eq!(covered, map.len());
+}
+
+#[test]
+fn region_update_equals_cell_updates() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+    let mut coarse = Octree::new(0.05);
+    let mut fine = Octree::new(0.05);
+    for _ in 0..200 {
+        let key = Key([
+            32768 + rng.random_range(0..16),
+            32768 + rng.random_range(0..16),
+            32768 + rng.random_range(0..16),
+        ]);
+        let delta = rng.random_range(-1.0..1.0f32);
+        coarse.update(&key, delta, Clamp::NONE);
+        fine.update(&key, delta, Clamp::NONE);
+    }
+    // +0.5 over the depth-13 node holding key 32768.. (8 cells a side).
+    let corner = Key([32768, 32768, 32768]);
+    coarse.update_region(&corner, 13, 0.5, Clamp::NONE);
+    for x in 0..8u16 {
+        for y in 0..8u16 {
+            for z in 0..8u16 {
+                fine.update(&Key([32768 + x, 32768 + y, 32768 + z]), 0.5, Clamp::NONE);
+            }
+        }
+    }
+    assert_eq!(coarse, fine);
+    // An untouched region updated as a whole stays one coarse leaf.
+    let mut tree = Octree::new(0.05);
+    tree.update_region(&Key([0, 0, 0]), 10, -0.4, Clamp::OCTOMAP);
+    let stats = tree.stats();
+    assert_eq!(stats.leaves, 1);
+    assert_eq!(tree.leaves()[0].depth, 10);
+    assert_eq!(tree.query(&Key([5, 7, 63]), 16), Some(-0.4));
+}
+
+#[test]
+fn octomap_constants_are_its_logodds() {
+    assert_eq!(LOG_ODDS_HIT, logodds(0.7));
+    assert_eq!(LOG_ODDS_MISS, logodds(0.4));
+    assert_eq!(Clamp::OCTOMAP.min, logodds(0.1192));
+    assert_eq!(Clamp::OCTOMAP.max, logodds(0.971));
+}
+
+#[test]
+fn clamping_saturates_at_octomap_bounds() {
+    let mut tree = Octree::new(0.02);
+    let key = Key([40000, 40000, 40000]);
+    for _ in 0..10 {
+        tree.update(&key, 0.847, Clamp::OCTOMAP);
+    }
+    assert_eq!(tree.query(&key, DEPTH), Some(Clamp::OCTOMAP.max));
+    for _ in 0..20 {
+        tree.update(&key, -0.405, Clamp::OCTOMAP);
+    }
+    assert_eq!(tree.query(&key, DEPTH), Some(Clamp::OCTOMAP.min));
+    assert_eq!(tree.query(&Key([1, 1, 1]), DEPTH), None);
+    let stats = tree.stats();
+    assert_eq!((stats.leaves, stats.inner, stats.nodes), (1, 16, 17));
+}

@@ -1,0 +1,124 @@
+//! sigmap's `.bt` / `.ot` files against OctoMap's own tools (Debian's
+//! `octomap-tools`, which `.ci/run` installs). Outside CI, without them, the
+//! test says so and passes; in CI it must run.
+
+use sigmap::mapping::octomap_io::{is_occupied, read_octree, write_octree};
+use sigmap::mapping::octree::{LOG_ODDS_HIT, LOG_ODDS_MISS};
+use sigmap::mapping::{Clamp, Key, Octree};
+use std::process::Command;
+
+fn tools_present() -> bool {
+    let present = Command::new("convert_octree").output().is_ok();
+    if !present {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI must install octomap-tools"
+        );
+        eprintln!("SKIPPED: OctoMap's tools not found (apt-get install octomap-tools)");
+    }
+    present
+}
+
+/// Free space below, occupied blocks above, a pruned coarse region.
+fn tree() -> Octree {
+    let mut tree = Octree::new(0.05);
+    for x in 0..24u16 {
+        for y in 0..24u16 {
+            for z in 0..6u16 {
+                let delta = if z >= 4 && (x / 4 + y / 4) % 2 == 0 {
+                    LOG_ODDS_HIT
+                } else {
+                    LOG_ODDS_MISS
+                };
+                tree.update(
+                    &Key([32760 + x, 32760 + y, 32766 + z]),
+                    delta,
+                    Clamp::OCTOMAP,
+                );
+            }
+        }
+    }
+    tree.update_region(
+        &Key([32000, 32000, 32000]),
+        12,
+        LOG_ODDS_HIT,
+        Clamp::OCTOMAP,
+    );
+    tree
+}
+
+#[test]
+fn octomap_reads_what_sigmap_writes() {
+    if !tools_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let tree = tree();
+    let bt = dir.path().join("map.bt");
+    let ot = dir.path().join("map.ot");
+    write_octree(&bt, &tree, Clamp::OCTOMAP).unwrap();
+    write_octree(&ot, &tree, Clamp::OCTOMAP).unwrap();
+
+    // OctoMap converts our .bt into its .ot: reading that back must give the
+    // maximum-likelihood tree, leaf for leaf.
+    let converted = dir.path().join("converted.ot");
+    let out = Command::new("convert_octree")
+        .arg(&bt)
+        .arg(&converted)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut ml = tree.clone();
+    ml.map_values(|v| {
+        if is_occupied(v) {
+            Clamp::OCTOMAP.max
+        } else {
+            Clamp::OCTOMAP.min
+        }
+    });
+    let back = read_octree(&converted, Clamp::OCTOMAP).unwrap();
+    assert_eq!(back, ml);
+    assert!(ml.stats().leaves > 100);
+
+    // Our .ot through OctoMap and back: identical, log-odds included.
+    let round = dir.path().join("round.ot");
+    let out = Command::new("convert_octree")
+        .arg(&ot)
+        .arg(&round)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(read_octree(&round, Clamp::OCTOMAP).unwrap(), tree);
+    assert_eq!(std::fs::read(&round).unwrap(), std::fs::read(&ot).unwrap());
+
+    // compare_octrees on our .ot and OctoMap's copy of it: no difference.
+    let out = Command::new("compare_octrees")
+        .arg(&ot)
+        .arg(&round)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    eprintln!("{text}");
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("KLD: 0\n"), "{text}");
+    // OctoMap's node and expanded-leaf counts match ours.
+    let mut finest = 0usize;
+    tree.visit_leaves(|leaf| finest += 1usize << (3 * (16 - leaf.depth) as usize));
+    assert!(
+        text.contains(&format!("Expanded num. leafs: {finest}\n")),
+        "{text}"
+    );
+    assert!(
+        text.contains(&format!("Done ({} nodes)", tree.stats().nodes)),
+        "{text}"
+    );
+}
