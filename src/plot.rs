@@ -1,4 +1,7 @@
 //! SVG charts (plotters), shared by every command that draws.
+//!
+//! Log axes are drawn by plotting `log10` of the data on a linear axis and
+//! labelling each tick with `10^tick`, so one code path serves both kinds of axes.
 
 use crate::error::{Error, Result};
 use plotters::prelude::*;
@@ -8,8 +11,24 @@ use std::path::Path;
 pub struct Series {
     /// Legend label.
     pub name: String,
-    /// Points `(x, y)`; non-finite or non-positive values are skipped on log axes.
+    /// Points `(x, y)`; non-finite values (and non-positive ones on log axes) are skipped.
     pub points: Vec<(f64, f64)>,
+}
+
+/// A chart panel: title, axis labels, axis kinds, and its lines.
+pub struct Panel<'a> {
+    /// Title above the panel.
+    pub title: &'a str,
+    /// X axis label.
+    pub x_label: &'a str,
+    /// Y axis label.
+    pub y_label: &'a str,
+    /// Logarithmic x axis.
+    pub log_x: bool,
+    /// Logarithmic y axis.
+    pub log_y: bool,
+    /// The lines.
+    pub series: &'a [Series],
 }
 
 const COLOURS: [RGBColor; 6] = [
@@ -21,74 +40,79 @@ const COLOURS: [RGBColor; 6] = [
     RGBColor(140, 86, 75),
 ];
 
-/// A chart panel: title, axis labels, and its lines.
-pub struct Panel<'a> {
-    /// Title above the panel.
-    pub title: &'a str,
-    /// X axis label.
-    pub x_label: &'a str,
-    /// Y axis label.
-    pub y_label: &'a str,
-    /// The lines.
-    pub series: &'a [Series],
-}
-
-fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(v), h.max(v))
-        });
-    if lo.is_finite() {
-        (lo / 1.5, hi * 1.5)
-    } else {
-        (1e-3, 1.0)
+fn transform(v: f64, log: bool) -> Option<f64> {
+    match (log, v.is_finite()) {
+        (_, false) => None,
+        (true, true) if v <= 0.0 => None,
+        (true, true) => Some(v.log10()),
+        (false, true) => Some(v),
     }
 }
 
-/// Writes side-by-side log-log panels into an SVG file.
-pub fn log_log_panels(path: &Path, panels: &[Panel]) -> Result<()> {
-    let width = 560 * panels.len() as u32;
+fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+        (l.min(v), h.max(v))
+    });
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let pad = if log {
+        0.15
+    } else {
+        0.05 * (hi - lo).max(1e-12)
+    };
+    (lo - pad, hi + pad)
+}
+
+fn label(v: f64, log: bool) -> String {
+    if log {
+        format!("{:.1e}", 10f64.powf(v))
+    } else {
+        format!("{v:.3}")
+    }
+}
+
+/// Writes side-by-side panels into an SVG file.
+pub fn panels(path: &Path, panels: &[Panel]) -> Result<()> {
+    let width = 560 * panels.len().max(1) as u32;
     let root = SVGBackend::new(path, (width, 420)).into_drawing_area();
     let err = |e: &dyn std::fmt::Display| Error::input(path, format!("cannot draw the chart: {e}"));
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    let areas = root.split_evenly((1, panels.len()));
+    let areas = root.split_evenly((1, panels.len().max(1)));
     for (area, panel) in areas.iter().zip(panels) {
-        let xs = range(
-            panel
-                .series
-                .iter()
-                .flat_map(|s| s.points.iter().map(|p| p.0)),
-        );
-        let ys = range(
-            panel
-                .series
-                .iter()
-                .flat_map(|s| s.points.iter().map(|p| p.1)),
-        );
+        let lines: Vec<Vec<(f64, f64)>> = panel
+            .series
+            .iter()
+            .map(|s| {
+                s.points
+                    .iter()
+                    .filter_map(|&(x, y)| {
+                        Some((transform(x, panel.log_x)?, transform(y, panel.log_y)?))
+                    })
+                    .collect()
+            })
+            .collect();
+        let xs = range(lines.iter().flatten().map(|p| p.0), panel.log_x);
+        let ys = range(lines.iter().flatten().map(|p| p.1), panel.log_y);
         let mut chart = ChartBuilder::on(area)
             .caption(panel.title, ("sans-serif", 18))
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(64)
-            .build_cartesian_2d((xs.0..xs.1).log_scale(), (ys.0..ys.1).log_scale())
+            .build_cartesian_2d(xs.0..xs.1, ys.0..ys.1)
             .map_err(|e| err(&e))?;
+        let (log_x, log_y) = (panel.log_x, panel.log_y);
         chart
             .configure_mesh()
             .x_desc(panel.x_label)
             .y_desc(panel.y_label)
-            .x_label_formatter(&|v| format!("{v:.0e}"))
-            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .x_label_formatter(&|v| label(*v, log_x))
+            .y_label_formatter(&|v| label(*v, log_y))
             .draw()
             .map_err(|e| err(&e))?;
-        for (k, series) in panel.series.iter().enumerate() {
+        for (k, (series, points)) in panel.series.iter().zip(lines).enumerate() {
             let colour = COLOURS[k % COLOURS.len()];
-            let points: Vec<(f64, f64)> = series
-                .points
-                .iter()
-                .copied()
-                .filter(|(x, y)| x.is_finite() && y.is_finite() && *x > 0.0 && *y > 0.0)
-                .collect();
+            let dots = points.len() <= 60;
             chart
                 .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
                 .map_err(|e| err(&e))?
@@ -96,13 +120,15 @@ pub fn log_log_panels(path: &Path, panels: &[Panel]) -> Result<()> {
                 .legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
                 });
-            chart
-                .draw_series(
-                    points
-                        .into_iter()
-                        .map(|p| Circle::new(p, 3, colour.filled())),
-                )
-                .map_err(|e| err(&e))?;
+            if dots {
+                chart
+                    .draw_series(
+                        points
+                            .into_iter()
+                            .map(|p| Circle::new(p, 3, colour.filled())),
+                    )
+                    .map_err(|e| err(&e))?;
+            }
         }
         chart
             .configure_series_labels()

@@ -1,6 +1,7 @@
 //! The command line: argument parsing, progress, and exit codes
 //! (0 ok, 1 a failed check, 2 bad input or usage).
 
+mod opdf;
 mod propagate;
 mod simulate;
 
@@ -29,6 +30,22 @@ enum Command {
     /// scene-frame mean, 3x3 covariance and cost; or, with --sweep, reproduce the
     /// paper's comparison over rotation sigmas (CSV + SVG).
     Propagate(PropagateArgs),
+    /// Draw the occupancy profile along a beam for several range and origin
+    /// sigmas (the paper's figures 1 and 6) as SVG, with the curves as CSV.
+    Opdf(OpdfArgs),
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct OpdfArgs {
+    /// Surface thickness Δ, the finest voxel edge (m).
+    #[arg(long, default_value_t = 0.01)]
+    thickness: f64,
+    /// Measured range of the plotted surface (m).
+    #[arg(long, default_value_t = 0.5)]
+    range: f64,
+    /// Output folder [default: results/opdf].
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -124,6 +141,7 @@ pub fn main() -> i32 {
     let result = match cli.command {
         Command::Simulate(args) => simulate::run(args),
         Command::Propagate(args) => propagate::run(args),
+        Command::Opdf(args) => opdf::run(args),
     };
     match result {
         Ok(()) => 0,

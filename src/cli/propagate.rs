@@ -3,7 +3,7 @@
 use super::PropagateArgs;
 use crate::error::{Error, Result};
 use crate::experiment::write_atomically;
-use crate::plot::{log_log_panels, Panel, Series};
+use crate::plot::{panels, Panel, Series};
 use crate::uncertainty::compare::{compare, log_space, sweep, MethodResult, SweepRow};
 use crate::uncertainty::{read_chain_file, UncertainPoint};
 use std::path::{Path, PathBuf};
@@ -147,19 +147,23 @@ fn plot_sweep(path: &Path, rows: &[SweepRow], samples: usize) -> Result<()> {
     let frob = series(|r| r.relative_frobenius);
     let mut kl = series(|r| r.kl_divergence);
     kl.pop();
-    log_log_panels(
+    panels(
         path,
         &[
             Panel {
                 title: "covariance error vs Monte Carlo",
                 x_label: "rotation sigma of every link (rad)",
                 y_label: "relative Frobenius error",
+                log_x: true,
+                log_y: true,
                 series: &frob,
             },
             Panel {
                 title: "KL(Monte Carlo || method)",
                 x_label: "rotation sigma of every link (rad)",
                 y_label: "KL divergence (nats)",
+                log_x: true,
+                log_y: true,
                 series: &kl,
             },
         ],

@@ -3,5 +3,7 @@
 
 pub mod octomap_io;
 pub mod octree;
+pub mod opdf;
+pub mod ray_update;
 
 pub use octree::{Clamp, Key, Leaf, Octree, TreeStats};
