@@ -32,6 +32,10 @@ pub struct ScannerSpec {
 pub struct Scanner {
     /// Unit beam directions, row by row (vertical angle outer).
     pub directions: Vec<Vector3>,
+    /// Horizontal angles of the columns (rad), increasing.
+    pub horizontal_angles: Vec<f64>,
+    /// Vertical angles of the rows (rad), increasing.
+    pub vertical_angles: Vec<f64>,
     /// Beams per row.
     pub columns: usize,
     /// Rows.
@@ -86,7 +90,7 @@ impl ScannerSpec {
         }
         let horizontal = angles(self.horizontal_fov_deg, self.horizontal_step_deg);
         let vertical = if self.vertical_fov_deg == 0.0 {
-            vec![0.0]
+            vec![0.0f64]
         } else {
             angles(self.vertical_fov_deg, v_step)
         };
@@ -108,6 +112,8 @@ impl ScannerSpec {
             directions,
             columns: horizontal.len(),
             rows: vertical.len(),
+            horizontal_angles: horizontal,
+            vertical_angles: vertical,
             min_range: self.min_range,
             max_range: self.max_range,
         })

@@ -1,0 +1,88 @@
+//! One viewpoint's local grid from its propagated beams (MATH.md §4.5, §5.1).
+
+use super::opdf::OpdfParams;
+use super::spherical::{Axis, BeamEnd, LocalGrid};
+use crate::geometry::{Matrix3, Vector3};
+
+/// The angular layout of the scanner: its column and row angles (rad).
+#[derive(Clone, Copy, Debug)]
+pub struct Raster<'a> {
+    /// Horizontal angles, increasing.
+    pub horizontal: &'a [f64],
+    /// Vertical angles, increasing.
+    pub vertical: &'a [f64],
+}
+
+fn angle_axis(angles: &[f64], fallback_step: f64) -> Axis {
+    let step = if angles.len() >= 2 {
+        (angles[angles.len() - 1] - angles[0]) / (angles.len() - 1) as f64
+    } else {
+        fallback_step
+    };
+    Axis {
+        start: angles[0] - step / 2.0,
+        step,
+        count: angles.len(),
+    }
+}
+
+/// Builds and fills the local grid of a viewpoint.
+///
+/// - `origin`, `origin_covariance`: the propagated sensor origin û and Γ_u;
+/// - `scene_from_camera`: the nominal rotation of the sensor (sets the grid axes);
+/// - `beams`: the propagated ends, scene frame;
+/// - range bins of `params.thickness` out to the farthest end plus 8σ (or the
+///   maximum range for no-return beams).
+pub fn local_grid(
+    origin: &Vector3,
+    origin_covariance: &Matrix3,
+    scene_from_camera: &Matrix3,
+    raster: Raster,
+    beams: &[BeamEnd],
+    max_range: f64,
+    params: &OpdfParams,
+) -> LocalGrid {
+    // Grid x = camera z (boresight), grid y = camera x, grid z = camera y.
+    let camera_from_grid = Matrix3::new(0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0);
+    let scene_from_grid = scene_from_camera * camera_from_grid;
+    let h_step = if raster.horizontal.len() >= 2 {
+        raster.horizontal[1] - raster.horizontal[0]
+    } else {
+        0.01
+    };
+    let v_step = if raster.vertical.len() >= 2 {
+        raster.vertical[1] - raster.vertical[0]
+    } else {
+        h_step
+    };
+    let farthest = beams
+        .iter()
+        .map(|b| match b {
+            BeamEnd::Hit { point, covariance } => {
+                let d = point - origin;
+                let v = d / d.norm();
+                d.norm() + 8.0 * (v.transpose() * covariance * v)[0].max(0.0).sqrt()
+            }
+            BeamEnd::Miss { .. } => max_range,
+        })
+        .fold(0.0f64, f64::max)
+        .max(params.thickness)
+        + 8.0 * params.thickness;
+    let range = Axis {
+        start: 0.0,
+        step: params.thickness,
+        count: (farthest / params.thickness).ceil() as usize,
+    };
+    let mut grid = LocalGrid::new(
+        *origin,
+        scene_from_grid,
+        range,
+        angle_axis(raster.horizontal, v_step),
+        angle_axis(raster.vertical, h_step),
+    );
+    grid.fill(beams, origin_covariance, params, max_range);
+    grid
+}
+
+#[cfg(test)]
+mod tests;
