@@ -212,10 +212,7 @@ impl LocalGrid {
             }
         }
         let level = &mut self.levels[0];
-        for slot in 0..dims[1] * dims[2] {
-            if hits_in_bin[slot] == 0 {
-                continue;
-            }
+        for (slot, _) in hits_in_bin.iter().enumerate().filter(|(_, n)| **n > 0) {
             let base = slot * dims[0];
             for i in base..base + dims[0] {
                 let v = level.sum[i];
