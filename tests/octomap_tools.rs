@@ -122,3 +122,67 @@ fn octomap_reads_what_sigmap_writes() {
         "{text}"
     );
 }
+
+/// sigmap's ray update against OctoMap's `insertPointCloud` on the same rays:
+/// the same tree, node for node (benches/octomap/insert.cpp, built here with
+/// g++ against Debian's liboctomap-dev).
+#[test]
+fn ray_update_builds_the_same_tree_as_octomap() {
+    if !tools_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let exe = dir.path().join("insert");
+    let source = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/octomap/insert.cpp");
+    let out = Command::new("g++")
+        .args(["-O2", "-std=c++17", source, "-o"])
+        .arg(&exe)
+        .args(["-loctomap", "-loctomath"])
+        .output()
+        .expect("g++");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rays = dir.path().join("rays.bin");
+    let ours = dir.path().join("ours.ot");
+    let out = Command::new(env!("CARGO_BIN_EXE_sigmap"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "map",
+            "experiments/quickstart.toml",
+            "--method",
+            "ray_update",
+            "--resolution",
+            "0.02",
+            "-q",
+            "--out",
+        ])
+        .arg(&ours)
+        .arg("--export-rays")
+        .arg(&rays)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let theirs = dir.path().join("octomap.ot");
+    let out = Command::new(&exe)
+        .arg(&rays)
+        .arg("0.02")
+        .arg(&theirs)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ours_tree = read_octree(&ours, Clamp::OCTOMAP).unwrap();
+    let their_tree = read_octree(&theirs, Clamp::OCTOMAP).unwrap();
+    assert_eq!(ours_tree.stats().nodes, their_tree.stats().nodes);
+    assert_eq!(ours_tree, their_tree, "every leaf and log-odds equal");
+}

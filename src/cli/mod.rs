@@ -1,6 +1,7 @@
 //! The command line: argument parsing, progress, and exit codes
 //! (0 ok, 1 a failed check, 2 bad input or usage).
 
+mod map;
 mod opdf;
 mod propagate;
 mod simulate;
@@ -33,6 +34,37 @@ enum Command {
     /// Draw the occupancy profile along a beam for several range and origin
     /// sigmas (the paper's figures 1 and 6) as SVG, with the curves as CSV.
     Opdf(OpdfArgs),
+    /// Simulate an experiment's run and build its occupancy map with one method
+    /// (blind, jacobian, unscented: the paper's OPDF merge; ray_update: OctoMap's
+    /// update); write it as an OctoMap .bt or .ot file.
+    Map(MapArgs),
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct MapArgs {
+    /// The experiment file (TOML).
+    experiment: PathBuf,
+    /// blind, jacobian, unscented or ray_update.
+    #[arg(long, default_value = "unscented")]
+    method: crate::experiment::model::Method,
+    /// Finest voxel edge (m).
+    #[arg(long, default_value_t = 0.01)]
+    resolution: f64,
+    /// Map file, .bt or .ot [default: results/<experiment>/map_<method>.bt].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Seed of the run [default: the experiment's `seed`].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Worker threads (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Also write the rays (origins and end points) for OctoMap's benchmark.
+    #[arg(long)]
+    export_rays: Option<PathBuf>,
+    /// No progress bar or summary.
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 #[derive(Args, Debug)]
@@ -142,6 +174,7 @@ pub fn main() -> i32 {
         Command::Simulate(args) => simulate::run(args),
         Command::Propagate(args) => propagate::run(args),
         Command::Opdf(args) => opdf::run(args),
+        Command::Map(args) => map::run(args),
     };
     match result {
         Ok(()) => 0,

@@ -1,6 +1,7 @@
 //! Experiments: the configuration schema, the simulated runs, and their files.
 
 mod config;
+pub mod model;
 mod scan_files;
 mod simulate;
 

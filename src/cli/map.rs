@@ -1,0 +1,101 @@
+//! `sigmap map`: simulate an experiment's run and build its map with one
+//! method; write the OctoMap file; optionally export the rays for OctoMap.
+
+use super::{progress_bar, with_threads, MapArgs};
+use crate::error::{Error, Result};
+use crate::experiment::model::{build_map, ray_inputs};
+use crate::experiment::{self, Experiment, SimulatedRun};
+use crate::mapping::octomap_io::write_octree;
+use crate::mapping::Clamp;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// `sigmap map`.
+pub(crate) fn run(args: MapArgs) -> Result<()> {
+    if !(args.resolution.is_finite() && args.resolution >= 0.001) {
+        return Err(Error::Usage("--resolution must be at least 0.001 m".into()));
+    }
+    let experiment = Experiment::load(&args.experiment)?;
+    let seed = args.seed.unwrap_or(experiment.seed);
+    let out = args.out.clone().unwrap_or_else(|| {
+        PathBuf::from("results")
+            .join(&experiment.name)
+            .join(format!("map_{}.bt", args.method))
+    });
+    if !matches!(out.extension().and_then(|e| e.to_str()), Some("bt" | "ot")) {
+        return Err(Error::input(&out, "the map file must end in .bt or .ot"));
+    }
+    let bar = progress_bar(experiment.viewpoints.len(), "simulating", args.quiet);
+    let run = with_threads(args.threads, || {
+        experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
+    })??;
+    bar.finish_and_clear();
+    if let Some(path) = &args.export_rays {
+        export_rays(path, &experiment, &run)?;
+    }
+    let start = Instant::now();
+    let tree = with_threads(args.threads, || {
+        build_map(&experiment, &run, args.method, args.resolution)
+    })?;
+    let seconds = start.elapsed().as_secs_f64();
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    let staging = out.with_extension(format!("partial-{}", std::process::id()));
+    write_octree(
+        &staging.with_extension(out.extension().unwrap_or_default()),
+        &tree,
+        Clamp::OCTOMAP,
+    )?;
+    std::fs::rename(
+        staging.with_extension(out.extension().unwrap_or_default()),
+        &out,
+    )
+    .map_err(|e| Error::io(&out, e))?;
+    let stats = tree.stats();
+    let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
+    if !args.quiet {
+        eprintln!(
+            "{} map at {} m: {} nodes ({} leaves), {} bytes ({:.1} per leaf; OctoMap's layout: {:.1}); \
+             {beams} beams in {seconds:.2} s ({:.2} M beams/s); wrote {}",
+            args.method,
+            args.resolution,
+            stats.nodes,
+            stats.leaves,
+            stats.bytes,
+            stats.bytes as f64 / stats.leaves.max(1) as f64,
+            (16 * stats.nodes + 64 * stats.inner) as f64 / stats.leaves.max(1) as f64,
+            beams as f64 / seconds / 1e6,
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+/// The rays OctoMap's `insertPointCloud` gets: per scan, the origin and the
+/// end points (no-return beams as points at twice the maximum range, which
+/// OctoMap truncates to free space). Little-endian:
+/// `"SIGMAPRAYS1\n"`, `f32` max range, `u32` scans; per scan `f32` origin x y z,
+/// `u32` n, n × `f32` x y z.
+pub fn export_rays(path: &Path, experiment: &Experiment, run: &SimulatedRun) -> Result<()> {
+    let mut out = b"SIGMAPRAYS1\n".to_vec();
+    let max_range = experiment.scanner.max_range;
+    out.extend_from_slice(&(max_range as f32).to_le_bytes());
+    out.extend_from_slice(&(run.scans.len() as u32).to_le_bytes());
+    for scan in &run.scans {
+        let (origin, hits, misses) = ray_inputs(experiment, scan);
+        for v in origin.iter() {
+            out.extend_from_slice(&(*v as f32).to_le_bytes());
+        }
+        out.extend_from_slice(&((hits.len() + misses.len()) as u32).to_le_bytes());
+        let far = misses.iter().map(|d| origin + d * (2.0 * max_range));
+        for p in hits.iter().copied().chain(far) {
+            for v in p.iter() {
+                out.extend_from_slice(&(*v as f32).to_le_bytes());
+            }
+        }
+    }
+    let mut file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    file.write_all(&out).map_err(|e| Error::io(path, e))
+}
