@@ -156,6 +156,7 @@ pub fn build_map(
         );
         merge(&mut tree, &grid, &MergeOptions::default());
     }
+    tree.shrink_to_fit();
     tree
 }
 

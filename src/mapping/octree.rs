@@ -29,6 +29,19 @@ impl Key {
             | (((self.0[2] >> bit) & 1) << 2)) as usize
     }
 
+    /// The Morton code: bits of x, y, z interleaved so that the top three bits
+    /// are the root's child index; sorting by it is the tree's depth-first order.
+    #[inline]
+    pub fn morton(&self) -> u64 {
+        spread(self.0[0]) | spread(self.0[1]) << 1 | spread(self.0[2]) << 2
+    }
+
+    /// The inverse of [`Key::morton`].
+    #[inline]
+    pub fn from_morton(m: u64) -> Self {
+        Key([compact(m), compact(m >> 1), compact(m >> 2)])
+    }
+
     /// A 48-bit packing, for hashing and sorting.
     #[inline]
     pub fn packed(&self) -> u64 {
@@ -40,6 +53,26 @@ impl Key {
     pub fn unpack(v: u64) -> Self {
         Key([v as u16, (v >> 16) as u16, (v >> 32) as u16])
     }
+}
+
+/// Spreads 16 bits to every third bit.
+#[inline]
+fn spread(v: u16) -> u64 {
+    let mut x = v as u64;
+    x = (x | x << 16) & 0x0000_ff00_00ff;
+    x = (x | x << 8) & 0x00f0_0f00_f00f;
+    x = (x | x << 4) & 0x0c30_c30c_30c3;
+    (x | x << 2) & 0x2492_4924_9249
+}
+
+/// The inverse of [`spread`].
+#[inline]
+fn compact(m: u64) -> u16 {
+    let mut x = m & 0x2492_4924_9249;
+    x = (x | x >> 2) & 0x0c30_c30c_30c3;
+    x = (x | x >> 4) & 0x00f0_0f00_f00f;
+    x = (x | x >> 8) & 0x0000_ff00_00ff;
+    ((x | x >> 16) & 0xffff) as u16
 }
 
 /// How log-odds are bounded after an update (MATH.md §4.6).
@@ -274,6 +307,55 @@ impl Octree {
         }
     }
 
+    /// Adds `delta` to each finest cell of `codes` (Morton codes, sorted
+    /// ascending, no repeats) — the same result as [`Octree::update`] on each,
+    /// but walking the tree once: consecutive cells share their path from the
+    /// root, and each inner node is refreshed once when the walk leaves it.
+    pub fn update_sorted(&mut self, codes: &[u64], delta: f32, clamp: Clamp) {
+        let mut path = [0usize; DEPTH as usize + 1];
+        let mut valid = 0usize; // path[0..=valid] is the current path
+        let mut previous: Option<u64> = None;
+        for &code in codes {
+            let common = match previous {
+                // Depth of the deepest node shared with the previous cell.
+                Some(p) => {
+                    (((p ^ code).leading_zeros() as usize).saturating_sub(16) / 3).min(valid)
+                }
+                None => 0,
+            };
+            for d in (common + 1..valid.min(DEPTH as usize)).rev() {
+                self.refresh(path[d]);
+            }
+            let mut node = path[common];
+            let mut depth = common;
+            let mut skipped = false;
+            while depth < DEPTH as usize {
+                let mut block = self.nodes[node].children;
+                if block == NO_CHILDREN {
+                    let current = self.nodes[node].value;
+                    if !current.is_nan() && clamp.apply(current + delta) == current {
+                        skipped = true;
+                        break;
+                    }
+                    block = self.expand(node);
+                }
+                node = block as usize + ((code >> (3 * (DEPTH as usize - 1 - depth))) & 7) as usize;
+                depth += 1;
+                path[depth] = node;
+            }
+            if !skipped {
+                let leaf = &mut self.nodes[node];
+                let base = if leaf.value.is_nan() { 0.0 } else { leaf.value };
+                leaf.value = clamp.apply(base + delta);
+            }
+            valid = depth;
+            previous = Some(code);
+        }
+        for d in (0..valid.min(DEPTH as usize)).rev() {
+            self.refresh(path[d]);
+        }
+    }
+
     /// Adds `delta` to every cell of the node at `depth` containing `key`,
     /// unknown cells included (they start at 0); keeps the tree coarse where
     /// it already is.
@@ -358,6 +440,12 @@ impl Octree {
                 stack.push((n.children as usize + i, depth + 1, k));
             }
         }
+    }
+
+    /// Releases the node pool's spare capacity (after the last update).
+    pub fn shrink_to_fit(&mut self) {
+        self.nodes.shrink_to_fit();
+        self.free_blocks.shrink_to_fit();
     }
 
     /// Node counts and pool memory.

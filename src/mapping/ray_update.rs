@@ -12,13 +12,25 @@ use rustc_hash::FxHashSet;
 /// (OctoMap's `computeRayKeys`). Appends to `out`; false if either end lies
 /// outside the tree.
 pub fn ray_keys(tree: &Octree, origin: &Point3, end: &Point3, out: &mut Vec<Key>) -> bool {
+    walk_ray(tree, origin, end, |k, _| out.push(k))
+}
+
+/// The DDA behind [`ray_keys`]: calls `visit(key, (axis, step))` for each
+/// traversed cell, with the move that reached it (`None` for the first).
+#[inline]
+fn walk_ray(
+    tree: &Octree,
+    origin: &Point3,
+    end: &Point3,
+    mut visit: impl FnMut(Key, Option<(usize, i32)>),
+) -> bool {
     let (Some(start), Some(stop)) = (tree.key(origin), tree.key(end)) else {
         return false;
     };
     if start == stop {
         return true;
     }
-    out.push(start);
+    visit(start, None);
     let diff = end - origin;
     let length = diff.norm();
     let dir = diff / length;
@@ -60,17 +72,92 @@ pub fn ray_keys(tree: &Octree, origin: &Point3, end: &Point3, out: &mut Vec<Key>
         if t_max[0].min(t_max[1]).min(t_max[2]) > length {
             return true;
         }
-        out.push(Key(current));
+        visit(Key(current), Some((dim, step[dim])));
+    }
+}
+
+/// A set of cells of one scan: a bitmap over the scan's bounding box of keys
+/// when it is small enough (the usual case), a hash set otherwise; either way
+/// it also lists the Morton codes of its cells.
+#[derive(Default)]
+struct CellSet {
+    min: [u16; 3],
+    dims: [usize; 3],
+    bits: Vec<u64>,
+    hashed: FxHashSet<u64>,
+    dense: bool,
+    codes: Vec<u64>,
+}
+
+/// Largest bounding box (cells) kept as a bitmap: 2^27 bits, 16 MiB.
+const DENSE_LIMIT: usize = 1 << 27;
+
+impl CellSet {
+    fn reset(&mut self, min: [u16; 3], max: [u16; 3]) {
+        self.min = min;
+        self.dims = std::array::from_fn(|a| (max[a] - min[a]) as usize + 1);
+        let volume = self.dims.iter().product::<usize>();
+        self.dense = volume <= DENSE_LIMIT;
+        self.codes.clear();
+        self.hashed.clear();
+        if self.dense {
+            self.bits.clear();
+            self.bits.resize(volume.div_ceil(64), 0);
+        }
+    }
+
+    #[inline]
+    fn index(&self, key: &Key) -> usize {
+        let [x, y, z] = std::array::from_fn(|a| (key.0[a] - self.min[a]) as usize);
+        (z * self.dims[1] + y) * self.dims[0] + x
+    }
+
+    #[inline]
+    fn insert(&mut self, key: &Key) {
+        if self.dense {
+            self.insert_at(self.index(key), key);
+        } else if self.hashed.insert(key.packed()) {
+            self.codes.push(key.morton());
+        }
+    }
+
+    /// Dense sets: inserts the cell at bitmap index `i` (which is `key`'s).
+    #[inline]
+    fn insert_at(&mut self, i: usize, key: &Key) {
+        let (word, bit) = (i / 64, 1u64 << (i % 64));
+        if self.bits[word] & bit == 0 {
+            self.bits[word] |= bit;
+            self.codes.push(key.morton());
+        }
+    }
+
+    /// Bitmap index change of one step along `axis`.
+    #[inline]
+    fn stride(&self, axis: usize) -> isize {
+        match axis {
+            0 => 1,
+            1 => self.dims[0] as isize,
+            _ => (self.dims[0] * self.dims[1]) as isize,
+        }
+    }
+
+    #[inline]
+    fn contains(&self, key: &Key) -> bool {
+        if self.dense {
+            let i = self.index(key);
+            self.bits[i / 64] & (1u64 << (i % 64)) != 0
+        } else {
+            self.hashed.contains(&key.packed())
+        }
     }
 }
 
 /// Reusable buffers of the ray update (no allocation per scan once warm).
 #[derive(Default)]
 pub struct RayUpdater {
-    free: FxHashSet<u64>,
-    occupied: FxHashSet<u64>,
-    ray: Vec<Key>,
-    order: Vec<u64>,
+    free: CellSet,
+    occupied: CellSet,
+    ends: Vec<(Point3, bool)>,
 }
 
 impl RayUpdater {
@@ -86,46 +173,70 @@ impl RayUpdater {
         misses: &[Vector3],
         max_range: f64,
     ) {
-        self.free.clear();
-        self.occupied.clear();
+        self.ends.clear();
         for p in hits {
             let d = p - origin;
-            if d.norm() <= max_range {
-                self.ray.clear();
-                if ray_keys(tree, origin, p, &mut self.ray) {
-                    self.free.extend(self.ray.iter().map(Key::packed));
-                    if let Some(k) = tree.key(p) {
-                        self.occupied.insert(k.packed());
-                    }
-                }
+            let n = d.norm();
+            if n <= max_range {
+                self.ends.push((*p, true));
             } else {
-                self.carve(tree, origin, &(origin + d * (max_range / d.norm())));
+                self.ends.push((origin + d * (max_range / n), false));
             }
         }
-        for dir in misses {
-            self.carve(tree, origin, &(origin + dir * max_range));
+        self.ends
+            .extend(misses.iter().map(|d| (origin + d * max_range, false)));
+        let Some(start) = tree.key(origin) else {
+            return;
+        };
+        let (mut lo, mut hi) = (start.0, start.0);
+        for (p, _) in &self.ends {
+            if let Some(k) = tree.key(p) {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(k.0[a]);
+                    hi[a] = hi[a].max(k.0[a]);
+                }
+            }
         }
-        // Update in key order: deterministic, and neighbouring cells share a path.
-        self.order.clear();
-        self.order
-            .extend(self.free.iter().filter(|k| !self.occupied.contains(k)));
-        self.order.sort_unstable();
-        for k in &self.order {
-            tree.update(&Key::unpack(*k), LOG_ODDS_MISS, Clamp::OCTOMAP);
+        self.free.reset(lo, hi);
+        self.occupied.reset(lo, hi);
+        let strides = [
+            self.free.stride(0),
+            self.free.stride(1),
+            self.free.stride(2),
+        ];
+        for (end, hit) in &self.ends {
+            let free = &mut self.free;
+            let walked = if free.dense {
+                // Step the bitmap index along with the DDA.
+                let mut index = 0isize;
+                walk_ray(tree, origin, end, |k, moved| {
+                    index = match moved {
+                        None => free.index(&k) as isize,
+                        Some((axis, step)) => index + strides[axis] * step as isize,
+                    };
+                    free.insert_at(index as usize, &k);
+                })
+            } else {
+                walk_ray(tree, origin, end, |k, _| free.insert(&k))
+            };
+            if !walked {
+                continue;
+            }
+            if *hit {
+                if let Some(k) = tree.key(end) {
+                    self.occupied.insert(&k);
+                }
+            }
         }
-        self.order.clear();
-        self.order.extend(self.occupied.iter());
-        self.order.sort_unstable();
-        for k in &self.order {
-            tree.update(&Key::unpack(*k), LOG_ODDS_HIT, Clamp::OCTOMAP);
-        }
-    }
-
-    fn carve(&mut self, tree: &Octree, origin: &Point3, end: &Point3) {
-        self.ray.clear();
-        if ray_keys(tree, origin, end, &mut self.ray) {
-            self.free.extend(self.ray.iter().map(Key::packed));
-        }
+        // Occupied wins; update in depth-first (Morton) order, one walk each.
+        let occupied = &self.occupied;
+        self.free
+            .codes
+            .retain(|c| !occupied.contains(&Key::from_morton(*c)));
+        self.free.codes.sort_unstable();
+        tree.update_sorted(&self.free.codes, LOG_ODDS_MISS, Clamp::OCTOMAP);
+        self.occupied.codes.sort_unstable();
+        tree.update_sorted(&self.occupied.codes, LOG_ODDS_HIT, Clamp::OCTOMAP);
     }
 }
 

@@ -93,6 +93,13 @@ pub struct LocalGrid {
     pub azimuth: Axis,
     /// Elevation bins (rad).
     pub elevation: Axis,
+    /// `[range, azimuth, elevation]` bin counts.
+    dims: [usize; 3],
+    /// Log-odds per bin, range innermost (0: unknown).
+    values: Vec<f32>,
+    /// Whether some beam filled each angular bin (all its range bins).
+    filled: Vec<bool>,
+    /// The pyramid above the bins: level k aggregates 2^k bins a side.
     levels: Vec<Level>,
 }
 
@@ -122,21 +129,16 @@ impl LocalGrid {
         elevation: Axis,
     ) -> Self {
         let dims = [range.count, azimuth.count, elevation.count];
-        let n = dims.iter().product();
-        let base = Level {
-            dims,
-            min: vec![0.0; n],
-            max: vec![0.0; n],
-            sum: vec![0.0; n],
-            known: vec![0; n],
-        };
         Self {
             origin,
             scene_from_grid,
             range,
             azimuth,
             elevation,
-            levels: vec![base],
+            dims,
+            values: vec![0.0; dims.iter().product()],
+            filled: vec![false; dims[1] * dims[2]],
+            levels: Vec::new(),
         }
     }
 
@@ -156,7 +158,7 @@ impl LocalGrid {
         params: &OpdfParams,
         max_range: f64,
     ) {
-        let dims = self.levels[0].dims;
+        let dims = self.dims;
         let grid_from_scene = self.scene_from_grid.transpose();
         let free = logit(params.p_lo) as f32;
         let mut column = vec![0f32; dims[0]];
@@ -203,35 +205,27 @@ impl LocalGrid {
             let slot = a * dims[2] + e;
             let n = hits_in_bin[slot];
             hits_in_bin[slot] += 1;
-            let base = Self::flat(&dims, 0, a, e);
-            let level = &mut self.levels[0];
-            for (i, v) in column.iter().enumerate() {
+            self.filled[slot] = true;
+            let bins = &mut self.values[slot * dims[0]..(slot + 1) * dims[0]];
+            if n == 0 {
+                bins.copy_from_slice(&column);
+            } else {
                 // Running mean of the beams in this bin.
-                let old = level.sum[base + i];
-                level.sum[base + i] = old + (v - old) / (n + 1) as f32;
-            }
-        }
-        let level = &mut self.levels[0];
-        for (slot, _) in hits_in_bin.iter().enumerate().filter(|(_, n)| **n > 0) {
-            let base = slot * dims[0];
-            for i in base..base + dims[0] {
-                let v = level.sum[i];
-                level.min[i] = v;
-                level.max[i] = v;
-                level.known[i] = 1;
+                let w = 1.0 / (n + 1) as f32;
+                for (old, v) in bins.iter_mut().zip(&column) {
+                    *old += (v - *old) * w;
+                }
             }
         }
         self.build_pyramid();
     }
 
     fn build_pyramid(&mut self) {
-        self.levels.truncate(1);
-        loop {
-            let prev = self.levels.last().expect("base level");
-            if prev.dims.iter().all(|&d| d <= 1) {
-                break;
-            }
-            let dims = prev.dims.map(|d| d.div_ceil(2));
+        self.levels.clear();
+        let mut dims = self.dims;
+        while dims.iter().any(|&d| d > 1) {
+            let prev_dims = dims;
+            dims = dims.map(|d| d.div_ceil(2));
             let n = dims.iter().product();
             let mut next = Level {
                 dims,
@@ -240,15 +234,22 @@ impl LocalGrid {
                 sum: vec![0.0; n],
                 known: vec![0; n],
             };
-            for a in 0..prev.dims[1] {
-                for e in 0..prev.dims[2] {
-                    for r in 0..prev.dims[0] {
-                        let i = Self::flat(&prev.dims, r, a, e);
+            for a in 0..prev_dims[1] {
+                for e in 0..prev_dims[2] {
+                    for r in 0..prev_dims[0] {
+                        let i = Self::flat(&prev_dims, r, a, e);
                         let j = Self::flat(&dims, r / 2, a / 2, e / 2);
-                        next.min[j] = next.min[j].min(prev.min[i]);
-                        next.max[j] = next.max[j].max(prev.max[i]);
-                        next.sum[j] += prev.sum[i];
-                        next.known[j] += prev.known[i];
+                        let (min, max, sum, known) = match self.levels.last() {
+                            None => {
+                                let v = self.values[i];
+                                (v, v, v, self.filled[i / prev_dims[0]] as u32)
+                            }
+                            Some(prev) => (prev.min[i], prev.max[i], prev.sum[i], prev.known[i]),
+                        };
+                        next.min[j] = next.min[j].min(min);
+                        next.max[j] = next.max[j].max(max);
+                        next.sum[j] += sum;
+                        next.known[j] += known;
                     }
                 }
             }
@@ -262,20 +263,31 @@ impl LocalGrid {
     pub fn query(&self, r: (usize, usize), a: (usize, usize), e: (usize, usize)) -> BoxSummary {
         let span = (r.1 - r.0).max(a.1 - a.0).max(e.1 - e.0) + 1;
         let mut level = 0;
-        while level + 1 < self.levels.len() && (span >> level) > 2 {
+        while level < self.levels.len() && (span >> level) > 2 {
             level += 1;
         }
-        let l = &self.levels[level];
         let (mut min, mut max, mut sum, mut known, mut bins) =
             (f32::INFINITY, f32::NEG_INFINITY, 0.0f32, 0u32, 0usize);
+        let dims = if level == 0 {
+            self.dims
+        } else {
+            self.levels[level - 1].dims
+        };
         for aa in a.0 >> level..=a.1 >> level {
             for ee in e.0 >> level..=e.1 >> level {
                 for rr in r.0 >> level..=r.1 >> level {
-                    let i = Self::flat(&l.dims, rr, aa, ee);
-                    min = min.min(l.min[i]);
-                    max = max.max(l.max[i]);
-                    sum += l.sum[i];
-                    known += l.known[i];
+                    let i = Self::flat(&dims, rr, aa, ee);
+                    let (lo, hi, s, k) = if level == 0 {
+                        let v = self.values[i];
+                        (v, v, v, self.filled[i / dims[0]] as u32)
+                    } else {
+                        let l = &self.levels[level - 1];
+                        (l.min[i], l.max[i], l.sum[i], l.known[i])
+                    };
+                    min = min.min(lo);
+                    max = max.max(hi);
+                    sum += s;
+                    known += k;
                     bins += 1 << (3 * level);
                 }
             }
@@ -296,7 +308,7 @@ impl LocalGrid {
             self.azimuth.index(az),
             self.elevation.index(el),
         );
-        let dims = self.levels[0].dims;
+        let dims = self.dims;
         if i < 0
             || a < 0
             || e < 0
@@ -306,7 +318,7 @@ impl LocalGrid {
         {
             return 0.0;
         }
-        self.levels[0].sum[Self::flat(&dims, i as usize, a as usize, e as usize)]
+        self.values[Self::flat(&dims, i as usize, a as usize, e as usize)]
     }
 
     /// The bins that may hold any point of the ball of radius `radius` around

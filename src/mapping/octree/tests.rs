@@ -129,3 +129,56 @@ fn clamping_saturates_at_octomap_bounds() {
     let stats = tree.stats();
     assert_eq!((stats.leaves, stats.inner, stats.nodes), (1, 16, 17));
 }
+
+#[test]
+fn morton_codes_round_trip_and_order_depth_first() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+    for _ in 0..1000 {
+        let key = Key([rng.random(), rng.random(), rng.random()]);
+        assert_eq!(Key::from_morton(key.morton()), key);
+        for depth in 0..16u8 {
+            assert_eq!(
+                ((key.morton() >> (3 * (15 - depth))) & 7) as usize,
+                key.child_at(depth)
+            );
+        }
+    }
+}
+
+#[test]
+fn sorted_batch_update_equals_one_by_one() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(6);
+    for round in 0..20 {
+        let (mut batch, mut single) = (Octree::new(0.05), Octree::new(0.05));
+        for _ in 0..5 {
+            let mut codes: Vec<u64> = (0..rng.random_range(1..800))
+                .map(|_| {
+                    Key([
+                        32760 + rng.random_range(0..16),
+                        32760 + rng.random_range(0..16),
+                        32766 + rng.random_range(0..8),
+                    ])
+                    .morton()
+                })
+                .collect();
+            codes.sort_unstable();
+            codes.dedup();
+            let delta = if rng.random_bool(0.6) {
+                LOG_ODDS_HIT
+            } else {
+                LOG_ODDS_MISS
+            };
+            let clamp = if round % 2 == 0 {
+                Clamp::OCTOMAP
+            } else {
+                Clamp::NONE
+            };
+            batch.update_sorted(&codes, delta, clamp);
+            for c in &codes {
+                single.update(&Key::from_morton(*c), delta, clamp);
+            }
+            assert_eq!(batch, single);
+            assert_eq!(batch.stats().nodes, single.stats().nodes);
+        }
+    }
+}

@@ -14,14 +14,13 @@ fn random_grid(rng: &mut impl Rng) -> LocalGrid {
         axis(11),
         axis(6),
     );
-    let level = &mut grid.levels[0];
-    for i in 0..level.sum.len() {
+    let dims = grid.dims;
+    for slot in 0..dims[1] * dims[2] {
         if rng.random_bool(0.7) {
-            let v = rng.random_range(-3.0..3.0f32);
-            level.sum[i] = v;
-            level.min[i] = v;
-            level.max[i] = v;
-            level.known[i] = 1;
+            grid.filled[slot] = true;
+            for v in &mut grid.values[slot * dims[0]..(slot + 1) * dims[0]] {
+                *v = rng.random_range(-3.0..3.0f32);
+            }
         }
     }
     grid.build_pyramid();
@@ -32,7 +31,7 @@ fn random_grid(rng: &mut impl Rng) -> LocalGrid {
 fn box_queries_bound_the_bins_they_cover() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
     let grid = random_grid(&mut rng);
-    let dims = grid.levels[0].dims;
+    let dims = grid.dims;
     for _ in 0..500 {
         let pick = |rng: &mut rand_chacha::ChaCha8Rng, n: usize| {
             let a = rng.random_range(0..n);
@@ -44,15 +43,14 @@ fn box_queries_bound_the_bins_they_cover() {
             pick(&mut rng, dims[2]),
         );
         let s = grid.query(r, a, e);
-        let base = &grid.levels[0];
         let (mut min, mut max, mut known) = (f32::INFINITY, f32::NEG_INFINITY, 0);
         for aa in a.0..=a.1 {
             for ee in e.0..=e.1 {
                 for rr in r.0..=r.1 {
                     let i = LocalGrid::flat(&dims, rr, aa, ee);
-                    min = min.min(base.min[i]);
-                    max = max.max(base.max[i]);
-                    known += base.known[i];
+                    min = min.min(grid.values[i]);
+                    max = max.max(grid.values[i]);
+                    known += grid.filled[i / dims[0]] as u32;
                 }
             }
         }
