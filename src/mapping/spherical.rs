@@ -169,7 +169,13 @@ impl LocalGrid {
                     let d = point - self.origin;
                     let r = d.norm();
                     let v = d / r;
-                    (v, r, (v.transpose() * covariance * v)[0].max(0.0).sqrt())
+                    // [DESIGN] Bins sample the profile at their centres, Δρ apart:
+                    // the sampled profile is the profile seen through a bin, whose
+                    // position error is uniform over Δρ (variance Δρ²/12). Without
+                    // it a surface between two centres, σ ≪ Δρ, raises neither.
+                    let sigma2 = (v.transpose() * covariance * v)[0].max(0.0)
+                        + self.range.step.powi(2) / 12.0;
+                    (v, r, sigma2.sqrt())
                 }
                 BeamEnd::Miss { direction } => (*direction, f64::INFINITY, 0.0),
             };

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Side-by-side insertion benchmark: sigmap vs OctoMap on the same rays, one core.
+#
+#   bash benches/octomap/compare.sh [EXPERIMENT] [RESOLUTIONS...]
+#
+# Needs g++ and Debian's liboctomap-dev (apt-get install liboctomap-dev).
+# Exports the rays of EXPERIMENT (default experiments/octomap_bench.toml, about
+# 700 000 rays, up to 3 m), inserts them with OctoMap's insertPointCloud (the
+# program benches/octomap/insert.cpp) and with sigmap's ray update and OPDF
+# merge (unscented), at each resolution (default 0.02 0.05), and prints rays/s,
+# the ratios to OctoMap, and bytes per leaf.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+experiment=${1:-experiments/octomap_bench.toml}
+shift || true
+resolutions=${*:-0.02 0.05}
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+g++ -O2 -std=c++17 benches/octomap/insert.cpp -o "$work/insert" -loctomap -loctomath
+cargo build --release --quiet
+sigmap=target/release/sigmap
+
+rate() { sed -n 's/.*(\([0-9.]*\) M beams\/s).*/\1/p'; }
+per_leaf() { sed -n 's/.*(\([0-9.]*\) per leaf.*/\1/p'; }
+
+printf '%-6s %-12s %12s %9s %14s\n' res method "M rays/s" "vs OctoMap" "bytes/leaf"
+for res in $resolutions; do
+  "$sigmap" map "$experiment" --method ray_update --resolution "$res" --threads 1 \
+    --out "$work/ray.ot" --export-rays "$work/rays.bin" 2> "$work/ray.log"
+  octomap=$(taskset -c 0 "$work/insert" "$work/rays.bin" "$res" "$work/octomap.ot")
+  o_rate=$(awk '{print $7 / 1e6}' <<< "$octomap")
+  o_leaf=$(awk '{print $13 / $11}' <<< "$octomap")
+  printf '%-6s %-12s %12.3f %9s %14.1f\n' "$res" octomap "$o_rate" 1.00x "$o_leaf"
+  for method in ray_update unscented; do
+    taskset -c 0 "$sigmap" map "$experiment" --method "$method" --resolution "$res" --threads 1 \
+      --out "$work/$method.bt" 2> "$work/$method.log"
+    r=$(rate < "$work/$method.log")
+    printf '%-6s %-12s %12.3f %8.2fx %14.1f\n' "$res" "$method" "$r" "$(awk -v a="$r" -v b="$o_rate" 'BEGIN{print a/b}')" \
+      "$(per_leaf < "$work/$method.log")"
+  done
+  if command -v compare_octrees >/dev/null; then
+    echo "  ray_update vs OctoMap: $(compare_octrees "$work/ray.ot" "$work/octomap.ot" 2>&1 | grep KLD)"
+  fi
+done

@@ -1,0 +1,85 @@
+//! End-to-end runs of `sigmap map` and `sigmap opdf`.
+
+mod common;
+
+use common::sigmap;
+use sigmap::geometry::Point3;
+use sigmap::mapping::octomap_io::read_octree;
+use sigmap::mapping::Clamp;
+
+#[test]
+fn maps_are_written_and_carry_free_space_and_surfaces() {
+    let dir = tempfile::tempdir().unwrap();
+    for method in ["unscented", "ray_update", "blind", "jacobian"] {
+        let out = dir.path().join(format!("{method}.ot"));
+        let run = sigmap(&[
+            "map",
+            "experiments/quickstart.toml",
+            "--method",
+            method,
+            "--resolution",
+            "0.02",
+            "-q",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(
+            run.status.success(),
+            "{method}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let tree = read_octree(&out, Clamp::OCTOMAP).unwrap();
+        let at = |x, y, z| tree.value_at(&Point3::new(x, y, z));
+        // Open air 25 cm above the table centre, seen by every viewpoint: free.
+        assert!(at(0.0, 0.0, 0.3).unwrap() < 0.0, "{method}: free space");
+        // The table top (z = 0.003) beside the bunny, seen from above: one of
+        // the two cells that straddle it is occupied.
+        let top = at(0.1, 0.1, 0.001)
+            .unwrap_or(f32::MIN)
+            .max(at(0.1, 0.1, -0.001).unwrap_or(f32::MIN));
+        assert!(top > 0.0, "{method}: table surface");
+        // Inside the table, 5 cm under its top: never observed.
+        assert!(at(0.1, 0.1, -0.051).is_none(), "{method}: occluded");
+    }
+}
+
+#[test]
+fn bad_map_requests_exit_2() {
+    let out = sigmap(&["map", "experiments/quickstart.toml", "--method", "magic"]);
+    assert_eq!(out.status.code(), Some(2));
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("map.png");
+    let out = sigmap(&[
+        "map",
+        "experiments/quickstart.toml",
+        "--out",
+        bad.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains(".bt or .ot"));
+    assert!(!bad.exists());
+}
+
+#[test]
+fn opdf_figures_are_drawn() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = sigmap(&["opdf", "--out", dir.path().to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in ["opdf_fig1.svg", "opdf_fig6.svg"] {
+        assert!(std::fs::read_to_string(dir.path().join(f))
+            .unwrap()
+            .starts_with("<svg"));
+    }
+    let mut reader = csv::Reader::from_path(dir.path().join("opdf.csv")).unwrap();
+    let mut rows = 0;
+    for record in reader.records() {
+        let p: f64 = record.unwrap()[3].parse().unwrap();
+        assert!((0.0..=1.0).contains(&p));
+        rows += 1;
+    }
+    assert_eq!(rows, 7 * 2001);
+}
