@@ -44,6 +44,31 @@ fn maps_are_written_and_carry_free_space_and_surfaces() {
 }
 
 #[test]
+fn five_millimetre_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("fine.bt");
+    let run = sigmap(&[
+        "map",
+        "experiments/quickstart.toml",
+        "--resolution",
+        "0.005",
+        "-q",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let tree = read_octree(&out, Clamp::OCTOMAP).unwrap();
+    assert_eq!(tree.resolution(), 0.005);
+    let at = |z| tree.value_at(&Point3::new(0.1, 0.1, z)).unwrap_or(f32::MIN);
+    assert!(at(0.0025).max(at(0.0075)) > 0.0, "table top at z = 0.003");
+    assert!(at(0.1) < 0.0, "free above it");
+}
+
+#[test]
 fn bad_map_requests_exit_2() {
     let out = sigmap(&["map", "experiments/quickstart.toml", "--method", "magic"]);
     assert_eq!(out.status.code(), Some(2));

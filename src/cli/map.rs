@@ -13,10 +13,13 @@ use std::time::Instant;
 
 /// `sigmap map`.
 pub(crate) fn run(args: MapArgs) -> Result<()> {
-    if !(args.resolution.is_finite() && args.resolution >= 0.001) {
-        return Err(Error::Usage("--resolution must be at least 0.001 m".into()));
-    }
     let experiment = Experiment::load(&args.experiment)?;
+    let resolution = args.resolution.unwrap_or(experiment.resolution);
+    if !(resolution.is_finite() && (0.001..=1.0).contains(&resolution)) {
+        return Err(Error::Usage(
+            "--resolution must be between 0.001 and 1 m".into(),
+        ));
+    }
     let seed = args.seed.unwrap_or(experiment.seed);
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")
@@ -36,7 +39,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
     }
     let start = Instant::now();
     let tree = with_threads(args.threads, || {
-        build_map(&experiment, &run, args.method, args.resolution)
+        build_map(&experiment, &run, args.method, resolution)
     })?;
     let seconds = start.elapsed().as_secs_f64();
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -60,7 +63,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
             "{} map at {} m: {} nodes ({} leaves), {} bytes ({:.1} per leaf; OctoMap's layout: {:.1}); \
              {beams} beams in {seconds:.2} s ({:.2} M beams/s); wrote {}",
             args.method,
-            args.resolution,
+            resolution,
             stats.nodes,
             stats.leaves,
             stats.bytes,

@@ -47,9 +47,9 @@ pub(crate) struct MapArgs {
     /// blind, jacobian, unscented or ray_update.
     #[arg(long, default_value = "unscented")]
     method: crate::experiment::model::Method,
-    /// Finest voxel edge (m).
-    #[arg(long, default_value_t = 0.01)]
-    resolution: f64,
+    /// Finest voxel edge (m) [default: the experiment's `resolution`, else 0.01].
+    #[arg(long)]
+    resolution: Option<f64>,
     /// Map file, .bt or .ot [default: results/<experiment>/map_<method>.bt].
     #[arg(long)]
     out: Option<PathBuf>,

@@ -22,6 +22,8 @@ struct ExperimentFile {
     error_profile: PathBuf,
     #[serde(default = "default_seed")]
     seed: u64,
+    #[serde(default = "default_resolution")]
+    resolution: f64,
     robot: MountSpec,
     #[serde(default)]
     world_from_scene: PoseSpec,
@@ -32,6 +34,10 @@ struct ExperimentFile {
 
 fn default_seed() -> u64 {
     1
+}
+
+fn default_resolution() -> f64 {
+    0.01
 }
 
 fn default_base_link() -> String {
@@ -94,6 +100,8 @@ pub struct Experiment {
     pub source: PathBuf,
     /// The run's seed.
     pub seed: u64,
+    /// The map's finest voxel edge (m): `resolution` in the file, default 0.01.
+    pub resolution: f64,
     /// The workcell scene.
     pub scene: Scene,
     /// The robot.
@@ -157,6 +165,12 @@ impl Experiment {
                 "[robot] and [world_from_scene] poses must be finite".into()
             ));
         }
+        if !(file.resolution.is_finite() && (0.001..=1.0).contains(&file.resolution)) {
+            return Err(bad(format!(
+                "resolution = {} must be between 0.001 and 1 m",
+                file.resolution
+            )));
+        }
         let scanner = file.sensor.build().map_err(bad)?;
         if file.viewpoints.is_empty() {
             return Err(bad("the experiment has no [[viewpoint]]".into()));
@@ -166,6 +180,7 @@ impl Experiment {
             description: file.description,
             source: path.to_path_buf(),
             seed: file.seed,
+            resolution: file.resolution,
             scene,
             robot,
             arm,
