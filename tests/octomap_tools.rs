@@ -7,6 +7,15 @@ use sigmap::mapping::octree::{LOG_ODDS_HIT, LOG_ODDS_MISS};
 use sigmap::mapping::{Clamp, Key, Octree};
 use std::process::Command;
 
+/// Runs a command to success and returns what it printed (stdout + stderr).
+fn run(command: &mut Command) -> String {
+    let out = command.output().expect("run the tool");
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{command:?}: {text}");
+    text
+}
+
 fn tools_present() -> bool {
     let present = Command::new("convert_octree").output().is_ok();
     if !present {
@@ -62,16 +71,7 @@ fn octomap_reads_what_sigmap_writes() {
     // OctoMap converts our .bt into its .ot: reading that back must give the
     // maximum-likelihood tree, leaf for leaf.
     let converted = dir.path().join("converted.ot");
-    let out = Command::new("convert_octree")
-        .arg(&bt)
-        .arg(&converted)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    run(Command::new("convert_octree").arg(&bt).arg(&converted));
     let mut ml = tree.clone();
     ml.map_values(|v| {
         if is_occupied(v) {
@@ -86,29 +86,13 @@ fn octomap_reads_what_sigmap_writes() {
 
     // Our .ot through OctoMap and back: identical, log-odds included.
     let round = dir.path().join("round.ot");
-    let out = Command::new("convert_octree")
-        .arg(&ot)
-        .arg(&round)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    run(Command::new("convert_octree").arg(&ot).arg(&round));
     assert_eq!(read_octree(&round, Clamp::OCTOMAP).unwrap(), tree);
     assert_eq!(std::fs::read(&round).unwrap(), std::fs::read(&ot).unwrap());
 
     // compare_octrees on our .ot and OctoMap's copy of it: no difference.
-    let out = Command::new("compare_octrees")
-        .arg(&ot)
-        .arg(&round)
-        .output()
-        .unwrap();
-    let text =
-        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    let text = run(Command::new("compare_octrees").arg(&ot).arg(&round));
     eprintln!("{text}");
-    assert!(out.status.success(), "{text}");
     assert!(text.contains("KLD: 0\n"), "{text}");
     // OctoMap's node and expanded-leaf counts match ours.
     let mut finest = 0usize;
@@ -134,20 +118,13 @@ fn ray_update_builds_the_same_tree_as_octomap() {
     let dir = tempfile::tempdir().unwrap();
     let exe = dir.path().join("insert");
     let source = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/octomap/insert.cpp");
-    let out = Command::new("g++")
+    run(Command::new("g++")
         .args(["-O2", "-std=c++17", source, "-o"])
         .arg(&exe)
-        .args(["-loctomap", "-loctomath"])
-        .output()
-        .expect("g++");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        .args(["-loctomap", "-loctomath"]));
     let rays = dir.path().join("rays.bin");
     let ours = dir.path().join("ours.ot");
-    let out = Command::new(env!("CARGO_BIN_EXE_sigmap"))
+    run(Command::new(env!("CARGO_BIN_EXE_sigmap"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .args([
             "map",
@@ -161,26 +138,9 @@ fn ray_update_builds_the_same_tree_as_octomap() {
         ])
         .arg(&ours)
         .arg("--export-rays")
-        .arg(&rays)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        .arg(&rays));
     let theirs = dir.path().join("octomap.ot");
-    let out = Command::new(&exe)
-        .arg(&rays)
-        .arg("0.02")
-        .arg(&theirs)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    run(Command::new(&exe).arg(&rays).arg("0.02").arg(&theirs));
     let ours_tree = read_octree(&ours, Clamp::OCTOMAP).unwrap();
     let their_tree = read_octree(&theirs, Clamp::OCTOMAP).unwrap();
     assert_eq!(ours_tree.stats().nodes, their_tree.stats().nodes);

@@ -20,7 +20,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
             "--resolution must be between 0.001 and 1 m".into(),
         ));
     }
-    let seed = args.seed.unwrap_or(experiment.seed);
+    let seed = args.run.seed.unwrap_or(experiment.seed);
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")
             .join(&experiment.name)
@@ -29,8 +29,8 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
     if !matches!(out.extension().and_then(|e| e.to_str()), Some("bt" | "ot")) {
         return Err(Error::input(&out, "the map file must end in .bt or .ot"));
     }
-    let bar = progress_bar(experiment.viewpoints.len(), "simulating", args.quiet);
-    let run = with_threads(args.threads, || {
+    let bar = progress_bar(experiment.viewpoints.len(), "simulating", args.run.quiet);
+    let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
     })??;
     bar.finish_and_clear();
@@ -38,7 +38,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         export_rays(path, &experiment, &run)?;
     }
     let start = Instant::now();
-    let tree = with_threads(args.threads, || {
+    let tree = with_threads(args.run.threads, || {
         build_map(&experiment, &run, args.method, resolution)
     })?;
     let seconds = start.elapsed().as_secs_f64();
@@ -58,7 +58,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
     .map_err(|e| Error::io(&out, e))?;
     let stats = tree.stats();
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
-    if !args.quiet {
+    if !args.run.quiet {
         eprintln!(
             "{} map at {} m: {} nodes ({} leaves), {} bytes ({:.1} per leaf; OctoMap's layout: {:.1}); \
              {beams} beams in {seconds:.2} s ({:.2} M beams/s); wrote {}",

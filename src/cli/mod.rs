@@ -53,15 +53,22 @@ pub(crate) struct MapArgs {
     /// Map file, .bt or .ot [default: results/<experiment>/map_<method>.bt].
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Seed of the run [default: the experiment's `seed`].
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Worker threads (0: one per core).
-    #[arg(long, default_value_t = 0)]
-    threads: usize,
     /// Also write the rays (origins and end points) for OctoMap's benchmark.
     #[arg(long)]
     export_rays: Option<PathBuf>,
+    #[command(flatten)]
+    run: RunOptions,
+}
+
+/// Options of every command that simulates a run.
+#[derive(Args, Debug)]
+pub(crate) struct RunOptions {
+    /// Seed of the run [default: the experiment's `seed`].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Worker threads (0: one per core). Results do not depend on it.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
     /// No progress bar or summary.
     #[arg(long, short)]
     quiet: bool,
@@ -87,15 +94,8 @@ pub(crate) struct SimulateArgs {
     /// Output folder [default: results/<experiment>/scans].
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Seed of the run [default: the experiment's `seed`].
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Worker threads (0: one per core). Results do not depend on it.
-    #[arg(long, default_value_t = 0)]
-    threads: usize,
-    /// No progress bar.
-    #[arg(long, short)]
-    quiet: bool,
+    #[command(flatten)]
+    run: RunOptions,
 }
 
 #[derive(Args, Debug)]

@@ -8,14 +8,14 @@ use std::time::Instant;
 /// `sigmap simulate`.
 pub(crate) fn run(args: SimulateArgs) -> Result<()> {
     let experiment = Experiment::load(&args.experiment)?;
-    let seed = args.seed.unwrap_or(experiment.seed);
+    let seed = args.run.seed.unwrap_or(experiment.seed);
     let out = args
         .out
         .clone()
         .unwrap_or_else(|| experiment::default_scan_dir(&experiment));
-    let bar = progress_bar(experiment.viewpoints.len(), "viewpoints", args.quiet);
+    let bar = progress_bar(experiment.viewpoints.len(), "viewpoints", args.run.quiet);
     let start = Instant::now();
-    let run = with_threads(args.threads, || {
+    let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |done| bar.set_position(done as u64))
     })??;
     bar.finish_and_clear();
@@ -32,7 +32,7 @@ pub(crate) fn run(args: SimulateArgs) -> Result<()> {
                 .count()
         })
         .sum();
-    if !args.quiet {
+    if !args.run.quiet {
         eprintln!(
             "simulated {} viewpoints, {beams} beams ({hits} hits) in {elapsed:.2} s ({:.2} M beams/s); wrote {}",
             run.scans.len(),

@@ -282,23 +282,41 @@ impl Octree {
         self.nodes[node].value = max;
     }
 
-    /// Adds `delta` to the finest cell `key` (unknown counts as 0), clamps.
-    pub fn update(&mut self, key: &Key, delta: f32, clamp: Clamp) {
-        let mut path = [0usize; DEPTH as usize];
+    /// Walks from the root to the node at `depth` containing `key`, giving
+    /// children to the nodes on the way (copies of a pruned leaf, or unknown)
+    /// and recording the path. Stops with `None` at a pruned leaf whose value
+    /// `unchanged` says the update would not change.
+    fn descend(
+        &mut self,
+        key: &Key,
+        depth: u8,
+        path: &mut [usize; DEPTH as usize],
+        unchanged: impl Fn(f32) -> bool,
+    ) -> Option<usize> {
         let mut node = 0usize;
-        for depth in 0..DEPTH {
-            path[depth as usize] = node;
+        for d in 0..depth {
+            path[d as usize] = node;
             let mut block = self.nodes[node].children;
             if block == NO_CHILDREN {
                 let current = self.nodes[node].value;
-                // A pruned leaf already at the target value (clamped): nothing changes.
-                if !current.is_nan() && clamp.apply(current + delta) == current {
-                    return;
+                if !current.is_nan() && unchanged(current) {
+                    return None;
                 }
                 block = self.expand(node);
             }
-            node = block as usize + key.child_at(depth);
+            node = block as usize + key.child_at(d);
         }
+        Some(node)
+    }
+
+    /// Adds `delta` to the finest cell `key` (unknown counts as 0), clamps.
+    pub fn update(&mut self, key: &Key, delta: f32, clamp: Clamp) {
+        let mut path = [0usize; DEPTH as usize];
+        // A pruned leaf already at the target value (clamped): nothing changes.
+        let Some(node) = self.descend(key, DEPTH, &mut path, |v| clamp.apply(v + delta) == v)
+        else {
+            return;
+        };
         let leaf = &mut self.nodes[node];
         let base = if leaf.value.is_nan() { 0.0 } else { leaf.value };
         leaf.value = clamp.apply(base + delta);
@@ -361,15 +379,9 @@ impl Octree {
     /// it already is.
     pub fn update_region(&mut self, key: &Key, depth: u8, delta: f32, clamp: Clamp) {
         let mut path = [0usize; DEPTH as usize];
-        let mut node = 0usize;
-        for d in 0..depth {
-            path[d as usize] = node;
-            let mut block = self.nodes[node].children;
-            if block == NO_CHILDREN {
-                block = self.expand(node);
-            }
-            node = block as usize + key.child_at(d);
-        }
+        let Some(node) = self.descend(key, depth, &mut path, |_| false) else {
+            return;
+        };
         self.add_subtree(node, delta, clamp);
         for d in (0..depth).rev() {
             self.refresh(path[d as usize]);
