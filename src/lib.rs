@@ -12,6 +12,7 @@
 
 pub mod cli;
 pub mod error;
+pub mod eval;
 pub mod experiment;
 pub mod geometry;
 pub mod mapping;

@@ -108,3 +108,41 @@ fn opdf_figures_are_drawn() {
     }
     assert_eq!(rows, 7 * 2001);
 }
+
+#[test]
+fn ground_truth_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("truth.bt");
+    let run = sigmap(&[
+        "ground-truth",
+        "scenes/shelf.toml",
+        "--resolution",
+        "0.02",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let truth = read_octree(&out, Clamp::OCTOMAP).unwrap();
+    // A thin board is occupied; the middle of a compartment is free.
+    assert_eq!(
+        truth.value_at(&Point3::new(0.15, -0.2, 0.3317)),
+        Some(Clamp::OCTOMAP.max)
+    );
+    assert_eq!(
+        truth.value_at(&Point3::new(0.15, -0.2, 0.47)),
+        Some(Clamp::OCTOMAP.min)
+    );
+    let bad = sigmap(&["ground-truth", "scenes/shelf.toml", "--out", "truth.txt"]);
+    assert_eq!(bad.status.code(), Some(2));
+    let missing = sigmap(&[
+        "ground-truth",
+        "scenes/nope.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(missing.status.code(), Some(2));
+}

@@ -1,6 +1,7 @@
 //! The command line: argument parsing, progress, and exit codes
 //! (0 ok, 1 a failed check, 2 bad input or usage).
 
+mod ground_truth;
 mod map;
 mod opdf;
 mod propagate;
@@ -38,6 +39,21 @@ enum Command {
     /// (blind, jacobian, unscented: the paper's OPDF merge; ray_update: OctoMap's
     /// update); write it as an OctoMap .bt or .ot file.
     Map(MapArgs),
+    /// Voxelise a scene's true occupancy (a cell is occupied when its box meets
+    /// a solid, surface or interior) and write it as an OctoMap .bt or .ot file.
+    GroundTruth(GroundTruthArgs),
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct GroundTruthArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// Finest voxel edge (m).
+    #[arg(long, default_value_t = 0.01)]
+    resolution: f64,
+    /// Output file, .bt or .ot.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -175,6 +191,7 @@ pub fn main() -> i32 {
         Command::Propagate(args) => propagate::run(args),
         Command::Opdf(args) => opdf::run(args),
         Command::Map(args) => map::run(args),
+        Command::GroundTruth(args) => ground_truth::run(args),
     };
     match result {
         Ok(()) => 0,

@@ -379,6 +379,32 @@ impl Scene {
     }
 }
 
+impl Scene {
+    /// Indices of the objects whose bounding boxes meet the box `[min, max]`.
+    pub fn objects_near(&self, min: &Point3, max: &Point3) -> Vec<usize> {
+        let aabb = Aabb::new(to_parry(&min.coords), to_parry(&max.coords));
+        let found: Vec<usize> = self.bvh.intersect_aabb(&aabb).map(|i| i as usize).collect();
+        found
+    }
+
+    /// Whether the closed box `[min, max]` meets object `object`'s solid
+    /// (its surface or its interior): the ground-truth occupancy rule.
+    pub fn box_meets_object(&self, object: usize, min: &Point3, max: &Point3) -> bool {
+        let o = &self.objects[object];
+        let centre = (min.coords + max.coords) / 2.0;
+        if o.shape.contains_point(&o.pose, to_parry(&centre)) {
+            return true;
+        }
+        let half = (max.coords - min.coords) / 2.0;
+        let cell = parry3d_f64::shape::Cuboid::new(to_parry(&half));
+        let cell_pose = ParryPose::from_translation(to_parry(&centre));
+        parry3d_f64::query::intersection_test(&cell_pose, &cell, &o.pose, o.shape.as_ref())
+            .map(|r| r.intersecting)
+            // Unsupported pairs do not occur for our shapes; count them as touching.
+            .unwrap_or(true)
+    }
+}
+
 /// A file's stem as a name.
 pub(crate) fn stem(path: &Path) -> String {
     path.file_stem()

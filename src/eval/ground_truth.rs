@@ -1,0 +1,173 @@
+//! Ground-truth occupancy of a scene (MATH.md §7.1).
+//!
+//! Rule: a cell of the finest level is **occupied** when its closed box meets
+//! a solid (its surface or its interior) and **free** otherwise; cells whose
+//! centre lies outside the scene's workspace are not part of the truth
+//! (unknown). A cell that only touches a face (a set of measure zero) may go
+//! either way with rounding. Occupied cells hold OctoMap's clamp maximum, free ones its
+//! minimum, so the truth is itself an OctoMap tree.
+//!
+//! The voxelisation recurses over octree cells: a cell inside the workspace
+//! that no object's bounding box meets is free as a whole (one coarse leaf);
+//! only cells near objects are split down to the finest level, where the
+//! exact box–solid test decides.
+
+use crate::geometry::Point3;
+use crate::mapping::octree::{Clamp, Key, DEPTH};
+use crate::mapping::Octree;
+use crate::sim::scene::{Bounds, Scene};
+
+/// The true occupancy of `scene`'s workspace at `resolution`.
+pub fn voxelise(scene: &Scene, resolution: f64) -> Octree {
+    let mut tree = Octree::new(resolution);
+    recurse(scene, &mut tree, Key([0, 0, 0]), 0);
+    tree
+}
+
+fn cell_bounds(tree: &Octree, key: &Key, depth: u8) -> Bounds {
+    let c = tree.center(key, depth);
+    let h = tree.node_size(depth) / 2.0;
+    Bounds {
+        min: Point3::new(c.x - h, c.y - h, c.z - h),
+        max: Point3::new(c.x + h, c.y + h, c.z + h),
+    }
+}
+
+fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8) {
+    let cell = cell_bounds(tree, &key, depth);
+    let ws = &scene.workspace;
+    if !cell.intersects(ws) {
+        return;
+    }
+    if depth == DEPTH {
+        let centre = tree.center(&key, depth);
+        if !ws.contains(&centre) {
+            return;
+        }
+        let occupied = scene
+            .objects_near(&cell.min, &cell.max)
+            .into_iter()
+            .any(|o| scene.box_meets_object(o, &cell.min, &cell.max));
+        let clamp = Clamp::OCTOMAP;
+        tree.update(&key, if occupied { clamp.max } else { clamp.min }, clamp);
+        return;
+    }
+    let inside = ws.contains(&cell.min) && ws.contains(&cell.max);
+    if inside && scene.objects_near(&cell.min, &cell.max).is_empty() {
+        tree.update_region(&key, depth, Clamp::OCTOMAP.min, Clamp::OCTOMAP);
+        return;
+    }
+    let bit = 15 - depth as u32;
+    for child in 0..8u16 {
+        let mut k = key;
+        for (axis, kk) in k.0.iter_mut().enumerate() {
+            *kk |= ((child >> axis) & 1) << bit;
+        }
+        recurse(scene, tree, k, depth + 1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mapping::octomap_io::is_occupied;
+    use std::path::PathBuf;
+
+    fn scene(body: &str) -> (tempfile::TempDir, Scene) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("s.toml");
+        std::fs::write(
+            &path,
+            format!("[workspace]\nmin = [-0.5, -0.5, -0.5]\nmax = [0.5, 0.5, 0.5]\n{body}"),
+        )
+        .unwrap();
+        let scene = Scene::load(&path).unwrap();
+        (dir, scene)
+    }
+
+    #[test]
+    fn every_cell_a_solid_meets_is_occupied_and_the_rest_free() {
+        // A 0.2 m cube off the 5 cm grid spans 5 cells per axis.
+        let (_d, s) = scene(
+            "[[object]]\nshape = \"box\"\nsize = [0.2, 0.2, 0.2]\nxyz = [0.113, 0.087, 0.1042]\n",
+        );
+        let truth = voxelise(&s, 0.05);
+        let mut occupied = 0usize;
+        let mut free = 0usize;
+        truth.visit_leaves(|leaf| {
+            let cells = 1usize << (3 * (DEPTH - leaf.depth) as usize);
+            if is_occupied(leaf.value) {
+                occupied += cells;
+            } else {
+                free += cells;
+            }
+        });
+        assert_eq!(occupied, 5 * 5 * 5);
+        assert_eq!(
+            occupied + free,
+            20 * 20 * 20,
+            "every workspace cell is decided"
+        );
+        // An off-grid sphere: occupied cells cover it, and their count exceeds its volume.
+        let (_d, s) =
+            scene("[[object]]\nshape = \"sphere\"\nradius = 0.2\nxyz = [0.013, -0.021, 0.007]\n");
+        let truth = voxelise(&s, 0.02);
+        let mut cells = 0usize;
+        truth.visit_leaves(|leaf| {
+            if is_occupied(leaf.value) {
+                cells += 1 << (3 * (DEPTH - leaf.depth) as usize);
+            }
+        });
+        let volume = cells as f64 * 0.02f64.powi(3);
+        let sphere = 4.0 / 3.0 * std::f64::consts::PI * 0.2f64.powi(3);
+        assert!(
+            volume > sphere && volume < 1.35 * sphere,
+            "{volume} vs {sphere}"
+        );
+        for p in [
+            Point3::new(0.013, -0.021, 0.007),
+            Point3::new(0.2, -0.021, 0.007),
+        ] {
+            assert!(is_occupied(truth.value_at(&p).unwrap()), "{p:?}");
+        }
+        assert!(!is_occupied(
+            truth.value_at(&Point3::new(0.35, 0.35, 0.35)).unwrap()
+        ));
+        assert!(
+            truth.value_at(&Point3::new(0.7, 0.0, 0.0)).is_none(),
+            "outside the workspace"
+        );
+    }
+
+    #[test]
+    fn bunny_interior_and_thin_boards_are_occupied() {
+        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes");
+        let shelf = Scene::load(&root.join("shelf.toml")).unwrap();
+        let truth = voxelise(&shelf, 0.01);
+        // The 1.2 cm upper board and the 1 cm plate are never lost.
+        for p in [
+            Point3::new(0.15, -0.2, 0.6123),
+            Point3::new(0.16, 0.0217, 0.421),
+            Point3::new(0.15, 0.0, 0.05),
+        ] {
+            assert!(is_occupied(truth.value_at(&p).unwrap()), "{p:?}");
+        }
+        // The 3 cm passage between the plate and the divider stays free in its middle.
+        assert!(!is_occupied(
+            truth.value_at(&Point3::new(0.16, 0.0415, 0.42)).unwrap()
+        ));
+        let tabletop = Scene::load(&root.join("tabletop.toml")).unwrap();
+        let truth = voxelise(&tabletop, 0.01);
+        let bunny = tabletop
+            .objects()
+            .iter()
+            .find(|o| o.kind == "mesh")
+            .unwrap()
+            .bounds;
+        let centre = Point3::from((bunny.min.coords + bunny.max.coords) / 2.0);
+        assert!(
+            is_occupied(truth.value_at(&centre).unwrap()),
+            "the bunny's interior is filled"
+        );
+    }
+}

@@ -1,0 +1,3 @@
+//! Evaluation: the ground truth the maps are scored against.
+
+pub mod ground_truth;
