@@ -5,6 +5,7 @@ mod ground_truth;
 mod map;
 mod opdf;
 mod propagate;
+mod run;
 mod simulate;
 
 use crate::error::{Error, Result};
@@ -23,6 +24,11 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Run an experiment: every seed (in parallel), every method on each seed's
+    /// scans, scored against the ground truth; writes runs.csv, summary.csv,
+    /// timings.csv and the first seed's maps. Finished runs are kept: a re-run
+    /// skips them (--fresh redoes everything).
+    Run(RunArgs),
     /// Simulate an experiment's scans: ray-cast every viewpoint from the true
     /// (error-drawn) sensor pose and write what the modeller receives (CSV, PLY,
     /// nominal chains with covariances) and, apart, the truth.
@@ -88,6 +94,20 @@ pub(crate) struct RunOptions {
     /// No progress bar or summary.
     #[arg(long, short)]
     quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct RunArgs {
+    /// The experiment file (TOML).
+    experiment: PathBuf,
+    /// Output folder [default: results/<experiment>].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Redo every run, discarding earlier results.
+    #[arg(long)]
+    fresh: bool,
+    #[command(flatten)]
+    run: RunOptions,
 }
 
 #[derive(Args, Debug)]
@@ -187,6 +207,7 @@ pub fn main() -> i32 {
         }
     };
     let result = match cli.command {
+        Command::Run(args) => run::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Propagate(args) => propagate::run(args),
         Command::Opdf(args) => opdf::run(args),

@@ -24,6 +24,8 @@ struct ExperimentFile {
     seed: u64,
     #[serde(default = "default_resolution")]
     resolution: f64,
+    seeds: Option<Vec<u64>>,
+    methods: Option<Vec<String>>,
     robot: MountSpec,
     #[serde(default)]
     world_from_scene: PoseSpec,
@@ -102,6 +104,11 @@ pub struct Experiment {
     pub seed: u64,
     /// The map's finest voxel edge (m): `resolution` in the file, default 0.01.
     pub resolution: f64,
+    /// The seeds of `sigmap run` (`seeds = [..]`, default `[seed]`).
+    pub seeds: Vec<u64>,
+    /// The modelling methods compared by `sigmap run`
+    /// (default blind, unscented, ray_update).
+    pub methods: Vec<super::model::Method>,
     /// The workcell scene.
     pub scene: Scene,
     /// The robot.
@@ -171,6 +178,24 @@ impl Experiment {
                 file.resolution
             )));
         }
+        let seeds = file.seeds.clone().unwrap_or_else(|| vec![file.seed]);
+        if seeds.is_empty() {
+            return Err(bad("`seeds` is empty".into()));
+        }
+        let methods = match &file.methods {
+            None => vec![
+                super::model::Method::Blind,
+                super::model::Method::Unscented,
+                super::model::Method::RayUpdate,
+            ],
+            Some(names) => names
+                .iter()
+                .map(|n| n.parse().map_err(&bad))
+                .collect::<Result<Vec<_>>>()?,
+        };
+        if methods.is_empty() {
+            return Err(bad("`methods` is empty".into()));
+        }
         let scanner = file.sensor.build().map_err(bad)?;
         if file.viewpoints.is_empty() {
             return Err(bad("the experiment has no [[viewpoint]]".into()));
@@ -181,6 +206,8 @@ impl Experiment {
             source: path.to_path_buf(),
             seed: file.seed,
             resolution: file.resolution,
+            seeds,
+            methods,
             scene,
             robot,
             arm,

@@ -115,6 +115,29 @@ pub fn beam_ends(
         .collect()
 }
 
+/// For each hit of a scan: the error `truth − propagated mean` and the
+/// propagated covariance, for consistency checks against the simulator.
+pub fn beam_ends_with_truth(
+    experiment: &Experiment,
+    scan: &Scan,
+    propagator: &dyn Propagator,
+) -> Vec<(crate::geometry::Vector3, crate::geometry::Matrix3)> {
+    let range = &experiment.profile.range;
+    scan.measurements
+        .iter()
+        .zip(&experiment.scanner.directions)
+        .zip(&scan.truth.beams)
+        .filter(|((m, _), _)| m.status == BeamStatus::Hit)
+        .map(|((m, d), t)| {
+            let g = propagator.propagate(&UncertainPoint {
+                mean: d * m.range,
+                covariance: range.point_covariance(d, m.range),
+            });
+            (t.point.coords - g.mean, g.covariance)
+        })
+        .collect()
+}
+
 /// Builds the map of a run at `resolution` with `method`.
 pub fn build_map(
     experiment: &Experiment,

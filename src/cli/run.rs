@@ -1,0 +1,171 @@
+//! `sigmap run`: the experiment's seeds in parallel, each method on each
+//! seed's scans, scored; results appended as runs finish, resumable.
+
+use super::{progress_bar, with_threads, RunArgs};
+use crate::error::{Error, Result};
+use crate::experiment::runner::{
+    ground_truth, read_rows, run_seed, summarise, write_rows, RunRow, TimingRow,
+};
+use crate::experiment::Experiment;
+use crate::mapping::octomap_io::write_octree;
+use crate::mapping::Clamp;
+use rayon::prelude::*;
+use std::collections::BTreeSet;
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+/// `sigmap run`.
+pub(crate) fn run(args: RunArgs) -> Result<()> {
+    let experiment = Experiment::load(&args.experiment)?;
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("results").join(&experiment.name));
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let runs_path = out.join("runs.csv");
+    let journal_path = out.join("runs.journal.csv");
+    let timings_path = out.join("timings.csv");
+    if args.fresh {
+        for p in [&runs_path, &journal_path, &timings_path] {
+            if p.exists() {
+                std::fs::remove_file(p).map_err(|e| Error::io(p, e))?;
+            }
+        }
+    }
+    // Finished runs: the sorted file and the journal of an interrupted run.
+    let mut rows: Vec<RunRow> = read_rows(&runs_path)?;
+    rows.extend(read_journal(&journal_path)?);
+    let mut timings: Vec<TimingRow> = read_rows(&timings_path)?;
+    let done: BTreeSet<u64> = rows.iter().map(|r| r.seed).collect();
+    let pending: Vec<u64> = experiment
+        .seeds
+        .iter()
+        .copied()
+        .filter(|s| !done.contains(s))
+        .collect();
+    let truth = ground_truth(&experiment);
+    let bar = progress_bar(pending.len(), "runs", args.run.quiet);
+    let journal = Mutex::new(
+        std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&journal_path)
+            .map_err(|e| Error::io(&journal_path, e))?,
+    );
+    let first_seed = experiment.seeds[0];
+    let finished = with_threads(args.run.threads, || {
+        pending
+            .par_iter()
+            .map(|&seed| -> Result<(Vec<RunRow>, Vec<TimingRow>)> {
+                let (new_rows, new_timings, maps) = run_seed(&experiment, &truth, seed)?;
+                if seed == first_seed {
+                    for (method, map) in experiment.methods.iter().zip(&maps) {
+                        let path = out.join(format!("map_{method}.bt"));
+                        write_octree(&path, map, Clamp::OCTOMAP)?;
+                    }
+                }
+                // One write per finished run, so an interruption loses only unfinished runs.
+                let mut text = Vec::new();
+                {
+                    let mut w = csv::WriterBuilder::new()
+                        .has_headers(false)
+                        .from_writer(&mut text);
+                    for r in &new_rows {
+                        w.serialize(r)
+                            .map_err(|e| Error::io(&journal_path, e.into()))?;
+                    }
+                    w.flush().map_err(|e| Error::io(&journal_path, e))?;
+                }
+                let mut file = journal
+                    .lock()
+                    .map_err(|_| Error::CheckFailed("journal lock poisoned".into()))?;
+                file.write_all(&text)
+                    .and_then(|_| file.sync_data())
+                    .map_err(|e| Error::io(&journal_path, e))?;
+                bar.inc(1);
+                Ok((new_rows, new_timings))
+            })
+            .collect::<Vec<_>>()
+    })?;
+    bar.finish_and_clear();
+    for result in finished {
+        let (r, t) = result?;
+        rows.extend(r);
+        timings.extend(t);
+    }
+    let order = |m: &str| {
+        experiment
+            .methods
+            .iter()
+            .position(|x| x.as_str() == m)
+            .unwrap_or(usize::MAX)
+    };
+    rows.sort_by(|a, b| (a.seed, order(&a.method)).cmp(&(b.seed, order(&b.method))));
+    rows.dedup_by(|a, b| a.seed == b.seed && a.method == b.method);
+    timings.sort_by(|a, b| (a.seed, order(&a.method)).cmp(&(b.seed, order(&b.method))));
+    write_rows(&runs_path, &rows)?;
+    write_rows(&timings_path, &timings)?;
+    let summary = summarise(&rows, &experiment.methods);
+    write_rows(&out.join("summary.csv"), &summary)?;
+    std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
+    if !args.run.quiet {
+        print_headline(&experiment, &summary, rows.len());
+        eprintln!(
+            "wrote {}/runs.csv, summary.csv, timings.csv and map_<method>.bt",
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+fn read_journal(path: &std::path::Path) -> Result<Vec<RunRow>> {
+    if !path.exists() {
+        return Ok(Vec::new());
+    }
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .from_path(path)
+        .map_err(|e| Error::input(path, e))?;
+    // A run cut off mid-write leaves a partial last line: drop what does not parse.
+    Ok(reader.deserialize().filter_map(|r| r.ok()).collect())
+}
+
+fn print_headline(
+    experiment: &Experiment,
+    summary: &[crate::experiment::runner::SummaryRow],
+    rows: usize,
+) {
+    let get = |method: &str, metric: &str| {
+        summary
+            .iter()
+            .find(|s| s.method == method && s.metric == metric)
+            .map_or(f64::NAN, |s| s.mean)
+    };
+    println!(
+        "{}: {} seeds x {} methods ({rows} runs), {} m voxels; means over seeds",
+        experiment.name,
+        experiment.seeds.len(),
+        experiment.methods.len(),
+        experiment.resolution
+    );
+    println!(
+        "{:<11} {:>7} {:>7} {:>7} {:>11} {:>9} {:>7} {:>8} {:>9}",
+        "method", "prec", "recall", "F1", "false-free", "unknown", "Brier", "ROC AUC", "ANEES"
+    );
+    for method in &experiment.methods {
+        let m = method.as_str();
+        println!(
+            "{:<11} {:>7.3} {:>7.3} {:>7.3} {:>11.4} {:>9.3} {:>7.3} {:>8.3} {:>9.2}",
+            m,
+            get(m, "precision"),
+            get(m, "recall"),
+            get(m, "f1"),
+            get(m, "false_free_rate"),
+            get(m, "unknown_fraction"),
+            get(m, "brier"),
+            get(m, "roc_auc"),
+            get(m, "anees")
+        );
+    }
+}

@@ -1,0 +1,42 @@
+//! The observable mask (MATH.md §7.1): cells some true beam of the run could
+//! have seen, so that scores separate errors from cells nobody looked at.
+
+use crate::experiment::{Experiment, SimulatedRun};
+use crate::geometry::Point3;
+use crate::mapping::octree::Octree;
+use crate::mapping::ray_update::ray_keys;
+use rustc_hash::FxHashSet;
+
+/// Morton codes of the cells (at `resolution`) that a true beam traversed,
+/// or whose surface it hit, from the true sensor origin: up to the true hit,
+/// or up to the maximum range for beams that reached nothing.
+pub fn observable_cells(
+    experiment: &Experiment,
+    run: &SimulatedRun,
+    resolution: f64,
+) -> FxHashSet<u64> {
+    let grid = Octree::new(resolution);
+    let mut cells = FxHashSet::default();
+    let mut ray = Vec::new();
+    let max_range = experiment.scanner.max_range;
+    for scan in &run.scans {
+        let pose = &scan.truth.scene_from_camera;
+        let origin = Point3::from(pose.translation.vector);
+        for (beam, d) in scan.truth.beams.iter().zip(&experiment.scanner.directions) {
+            let end = if beam.range.is_nan() {
+                origin + pose.rotation * d * max_range
+            } else {
+                beam.point
+            };
+            ray.clear();
+            ray_keys(&grid, &origin, &end, &mut ray);
+            cells.extend(ray.iter().map(|k| k.morton()));
+            if !beam.range.is_nan() {
+                if let Some(k) = grid.key(&end) {
+                    cells.insert(k.morton());
+                }
+            }
+        }
+    }
+    cells
+}

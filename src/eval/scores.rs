@@ -1,0 +1,253 @@
+//! Scores of one map against the ground truth (MATH.md §7.2–7.3), over the
+//! cells some true beam could have seen.
+
+use crate::mapping::octree::{Key, DEPTH};
+use crate::mapping::opdf::probability;
+use crate::mapping::Octree;
+use rustc_hash::FxHashSet;
+use serde::Serialize;
+
+/// |log-odds| below this counts as unknown in the statistics (MATH.md §4.6).
+pub const UNKNOWN_BAND: f32 = 0.1;
+
+/// Map-vs-truth scores over the observable cells.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct MapScores {
+    /// Observable cells scored.
+    pub observable_cells: usize,
+    /// Truly occupied observable cells.
+    pub occupied_cells: usize,
+    /// TP / (TP + FP) for the occupied class.
+    pub precision: f64,
+    /// TP / (truly occupied).
+    pub recall: f64,
+    /// Harmonic mean of precision and recall.
+    pub f1: f64,
+    /// TP / (TP + FP + FN).
+    pub iou: f64,
+    /// Truly occupied cells the map calls free / truly occupied: the collision risk.
+    pub false_free_rate: f64,
+    /// The same over every cell within one cell (26-neighbourhood) of a truly occupied cell.
+    pub false_free_rate_margin: f64,
+    /// Truly free cells the map calls occupied / truly free.
+    pub false_occupied_rate: f64,
+    /// Cells the map does not know (never updated or |L| < 0.1) / observable.
+    pub unknown_fraction: f64,
+    /// Mean squared error of the occupancy probability over known cells.
+    pub brier: f64,
+    /// Mean negative log-likelihood over known cells (P clipped to [1e-6, 1 − 1e-6]).
+    pub log_loss: f64,
+    /// Area under the ROC curve of P over known cells.
+    pub roc_auc: f64,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Call {
+    Occupied,
+    Free,
+    Unknown,
+}
+
+fn call(log_odds: Option<f32>) -> Call {
+    match log_odds {
+        Some(l) if l >= UNKNOWN_BAND => Call::Occupied,
+        Some(l) if l <= -UNKNOWN_BAND => Call::Free,
+        _ => Call::Unknown,
+    }
+}
+
+/// Scores `map` against `truth` over the `observable` finest cells (Morton
+/// codes). Both trees must have the same resolution.
+pub fn score_map(map: &Octree, truth: &Octree, observable: &FxHashSet<u64>) -> MapScores {
+    let mut cells: Vec<u64> = observable.iter().copied().collect();
+    cells.sort_unstable();
+    let (mut tp, mut fp, mut fn_, mut ff, mut fo, mut occ, mut free, mut unknown) =
+        (0usize, 0, 0, 0, 0, 0, 0, 0);
+    let mut known: Vec<(f64, bool)> = Vec::new();
+    let mut occupied_keys = FxHashSet::default();
+    let mut scored = 0usize;
+    for code in &cells {
+        let key = Key::from_morton(*code);
+        let Some(t) = truth.query(&key, DEPTH) else {
+            continue;
+        };
+        scored += 1;
+        let truly = t >= 0.0;
+        let m = map.query(&key, DEPTH);
+        let c = call(m);
+        if truly {
+            occ += 1;
+            occupied_keys.insert(*code);
+        } else {
+            free += 1;
+        }
+        match (truly, c) {
+            (true, Call::Occupied) => tp += 1,
+            (true, Call::Free) => {
+                ff += 1;
+                fn_ += 1
+            }
+            (true, Call::Unknown) => fn_ += 1,
+            (false, Call::Occupied) => {
+                fp += 1;
+                fo += 1
+            }
+            _ => {}
+        }
+        if c == Call::Unknown {
+            unknown += 1;
+        } else if let Some(l) = m {
+            known.push((probability(l as f64), truly));
+        }
+    }
+    // Safety margin: observable cells within one cell of a truly occupied one.
+    let (mut near, mut near_free) = (0usize, 0usize);
+    for code in &cells {
+        let key = Key::from_morton(*code);
+        let close = (-1i32..=1).any(|dx| {
+            (-1i32..=1).any(|dy| {
+                (-1i32..=1).any(|dz| {
+                    let n = Key([
+                        (key.0[0] as i32 + dx) as u16,
+                        (key.0[1] as i32 + dy) as u16,
+                        (key.0[2] as i32 + dz) as u16,
+                    ]);
+                    occupied_keys.contains(&n.morton())
+                })
+            })
+        });
+        if close && truth.query(&key, DEPTH).is_some() {
+            near += 1;
+            if call(map.query(&key, DEPTH)) == Call::Free {
+                near_free += 1;
+            }
+        }
+    }
+    let ratio = |a: usize, b: usize| {
+        if b == 0 {
+            f64::NAN
+        } else {
+            a as f64 / b as f64
+        }
+    };
+    let precision = ratio(tp, tp + fp);
+    let recall = ratio(tp, occ);
+    let n = known.len() as f64;
+    let brier = known
+        .iter()
+        .map(|(p, o)| (p - if *o { 1.0 } else { 0.0 }).powi(2))
+        .sum::<f64>()
+        / n;
+    let log_loss = -known
+        .iter()
+        .map(|(p, o)| {
+            let p = p.clamp(1e-6, 1.0 - 1e-6);
+            if *o {
+                p.ln()
+            } else {
+                (1.0 - p).ln()
+            }
+        })
+        .sum::<f64>()
+        / n;
+    MapScores {
+        observable_cells: scored,
+        occupied_cells: occ,
+        precision,
+        recall,
+        f1: 2.0 * precision * recall / (precision + recall),
+        iou: ratio(tp, tp + fp + fn_),
+        false_free_rate: ratio(ff, occ),
+        false_free_rate_margin: ratio(near_free, near),
+        false_occupied_rate: ratio(fo, free),
+        unknown_fraction: ratio(unknown, scored),
+        brier,
+        log_loss,
+        roc_auc: roc_auc(&mut known),
+    }
+}
+
+/// Area under the ROC curve (ties share their rank: the Mann–Whitney U).
+pub fn roc_auc(scored: &mut [(f64, bool)]) -> f64 {
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let positives = scored.iter().filter(|s| s.1).count();
+    let negatives = scored.len() - positives;
+    if positives == 0 || negatives == 0 {
+        return f64::NAN;
+    }
+    let mut rank_sum = 0.0;
+    let mut i = 0;
+    while i < scored.len() {
+        let mut j = i;
+        while j < scored.len() && scored[j].0 == scored[i].0 {
+            j += 1;
+        }
+        let mid_rank = (i + j + 1) as f64 / 2.0; // ranks i+1 ..= j
+        rank_sum += mid_rank * scored[i..j].iter().filter(|s| s.1).count() as f64;
+        i = j;
+    }
+    (rank_sum - positives as f64 * (positives as f64 + 1.0) / 2.0)
+        / (positives as f64 * negatives as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mapping::Clamp;
+
+    #[test]
+    fn roc_auc_of_known_orders() {
+        assert_eq!(
+            roc_auc(&mut [(0.1, false), (0.9, true), (0.2, false), (0.8, true)]),
+            1.0
+        );
+        assert_eq!(roc_auc(&mut [(0.9, false), (0.1, true)]), 0.0);
+        assert_eq!(roc_auc(&mut [(0.5, false), (0.5, true)]), 0.5);
+    }
+
+    #[test]
+    fn perfect_and_wrong_maps() {
+        let mut truth = Octree::new(0.1);
+        let mut observable = FxHashSet::default();
+        for x in 0..10u16 {
+            let key = Key([32768 + x, 32768, 32768]);
+            let occupied = x == 9;
+            truth.update(
+                &key,
+                if occupied {
+                    Clamp::OCTOMAP.max
+                } else {
+                    Clamp::OCTOMAP.min
+                },
+                Clamp::OCTOMAP,
+            );
+            observable.insert(key.morton());
+        }
+        let perfect = score_map(&truth, &truth, &observable);
+        assert_eq!(
+            (
+                perfect.precision,
+                perfect.recall,
+                perfect.false_free_rate,
+                perfect.unknown_fraction
+            ),
+            (1.0, 1.0, 0.0, 0.0)
+        );
+        assert_eq!(perfect.roc_auc, 1.0);
+        // Clamped log-odds cap confidence: P = 0.119 on free cells gives 0.014.
+        assert!(perfect.brier < 0.015);
+        // A map that carved the surface away: everything free.
+        let mut carved = Octree::new(0.1);
+        for x in 0..10u16 {
+            carved.update(&Key([32768 + x, 32768, 32768]), -1.0, Clamp::OCTOMAP);
+        }
+        let s = score_map(&carved, &truth, &observable);
+        assert_eq!(s.false_free_rate, 1.0);
+        assert_eq!(s.recall, 0.0);
+        assert!(s.false_free_rate_margin > 0.9);
+        // An empty map knows nothing.
+        let s = score_map(&Octree::new(0.1), &truth, &observable);
+        assert_eq!(s.unknown_fraction, 1.0);
+        assert_eq!(s.false_free_rate, 0.0);
+    }
+}
