@@ -101,9 +101,9 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
             .position(|x| x.as_str() == m)
             .unwrap_or(usize::MAX)
     };
-    rows.sort_by(|a, b| (a.seed, order(&a.method)).cmp(&(b.seed, order(&b.method))));
+    rows.sort_by_key(|r| (r.seed, order(&r.method)));
     rows.dedup_by(|a, b| a.seed == b.seed && a.method == b.method);
-    timings.sort_by(|a, b| (a.seed, order(&a.method)).cmp(&(b.seed, order(&b.method))));
+    timings.sort_by_key(|r| (r.seed, order(&r.method)));
     write_rows(&runs_path, &rows)?;
     write_rows(&timings_path, &timings)?;
     let summary = summarise(&rows, &experiment.methods);
