@@ -116,3 +116,54 @@ fn bad_method_lists_exit_2() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown method 'magic'"));
 }
+
+#[test]
+fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
+    let ok = sigmap(&[
+        "regress",
+        "results/baselines/quickstart.csv",
+        "--baseline",
+        "results/baselines/quickstart.csv",
+    ]);
+    assert!(ok.status.success());
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string("results/baselines/quickstart.csv").unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let row = lines
+        .iter()
+        .position(|l| l.starts_with("unscented,false_free_rate,"))
+        .unwrap();
+    let mut fields: Vec<String> = lines[row].split(',').map(String::from).collect();
+    fields[3] = format!("{}", fields[3].parse::<f64>().unwrap() + 0.05);
+    lines[row] = fields.join(",");
+    let worse = dir.path().join("worse.csv");
+    std::fs::write(&worse, lines.join("\n") + "\n").unwrap();
+    let out = sigmap(&[
+        "regress",
+        worse.to_str().unwrap(),
+        "--baseline",
+        "results/baselines/quickstart.csv",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        table.contains("unscented") && table.contains("false_free_rate"),
+        "{table}"
+    );
+    let relaxed = sigmap(&[
+        "regress",
+        worse.to_str().unwrap(),
+        "--baseline",
+        "results/baselines/quickstart.csv",
+        "--tolerance",
+        "false_free_rate=0.1",
+    ]);
+    assert!(relaxed.status.success());
+    let missing = sigmap(&[
+        "regress",
+        "nope.csv",
+        "--baseline",
+        "results/baselines/quickstart.csv",
+    ]);
+    assert_eq!(missing.status.code(), Some(2));
+}

@@ -5,6 +5,7 @@ mod ground_truth;
 mod map;
 mod opdf;
 mod propagate;
+mod regress;
 mod run;
 mod simulate;
 
@@ -48,6 +49,22 @@ enum Command {
     /// Voxelise a scene's true occupancy (a cell is occupied when its box meets
     /// a solid, surface or interior) and write it as an OctoMap .bt or .ot file.
     GroundTruth(GroundTruthArgs),
+    /// Compare a summary.csv with a committed baseline; exit 1 with a table of
+    /// the metrics whose mean drifted past its tolerance.
+    Regress(RegressArgs),
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct RegressArgs {
+    /// The current summary.csv.
+    current: PathBuf,
+    /// The baseline summary.csv.
+    #[arg(long)]
+    baseline: PathBuf,
+    /// Override a metric's tolerance: METRIC=VALUE (absolute), repeatable.
+    /// Defaults: 0.01 for scores in [0, 1]; 5% of the baseline for anees and log_loss.
+    #[arg(long)]
+    tolerance: Vec<String>,
 }
 
 #[derive(Args, Debug)]
@@ -213,6 +230,7 @@ pub fn main() -> i32 {
         Command::Opdf(args) => opdf::run(args),
         Command::Map(args) => map::run(args),
         Command::GroundTruth(args) => ground_truth::run(args),
+        Command::Regress(args) => regress::run(args),
     };
     match result {
         Ok(()) => 0,
