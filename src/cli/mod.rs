@@ -25,32 +25,41 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Run an experiment: every seed (in parallel), every method on each seed's
-    /// scans, scored against the ground truth; writes runs.csv, summary.csv,
-    /// timings.csv and the first seed's maps. Finished runs are kept: a re-run
-    /// skips them (--fresh redoes everything).
+    /// Run an experiment and score every method against the ground truth
+    ///
+    /// Every seed (in parallel), every method on each seed's scans, scored
+    /// against the ground truth; writes runs.csv, summary.csv, timings.csv and
+    /// the first seed's maps. Finished runs are kept: a re-run skips them
+    /// (--fresh redoes everything).
     Run(RunArgs),
-    /// Simulate an experiment's scans: ray-cast every viewpoint from the true
-    /// (error-drawn) sensor pose and write what the modeller receives (CSV, PLY,
-    /// nominal chains with covariances) and, apart, the truth.
+    /// Simulate an experiment's scans and write them (CSV, PLY, chains)
+    ///
+    /// Ray-cast every viewpoint from the true (error-drawn) sensor pose and
+    /// write what the modeller receives (CSV, PLY, nominal chains with
+    /// covariances) and, apart, the truth.
     Simulate(SimulateArgs),
-    /// Propagate one measurement through an uncertain transform chain with every
-    /// method (blind, Jacobian, unscented, Monte Carlo) and print each method's
-    /// scene-frame mean, 3x3 covariance and cost; or, with --sweep, reproduce the
-    /// paper's comparison over rotation sigmas (CSV + SVG).
+    /// Propagate one measurement through an uncertain chain with every method
+    ///
+    /// Blind, Jacobian, unscented and Monte Carlo: prints each method's
+    /// scene-frame mean, 3x3 covariance and cost; or, with --sweep, reproduces
+    /// the paper's comparison over rotation sigmas (CSV + SVG).
     Propagate(PropagateArgs),
-    /// Draw the occupancy profile along a beam for several range and origin
-    /// sigmas (the paper's figures 1 and 6) as SVG, with the curves as CSV.
+    /// Draw the occupancy profile along a beam (the paper's figures 1 and 6)
+    ///
+    /// For several range and origin sigmas, as SVG, with the curves as CSV.
     Opdf(OpdfArgs),
-    /// Simulate an experiment's run and build its occupancy map with one method
-    /// (blind, jacobian, unscented: the paper's OPDF merge; ray_update: OctoMap's
-    /// update); write it as an OctoMap .bt or .ot file.
+    /// Build one run's occupancy map with one method, as an OctoMap file
+    ///
+    /// blind, jacobian, unscented: the paper's OPDF merge; ray_update:
+    /// OctoMap's update. Writes a .bt or .ot file.
     Map(MapArgs),
-    /// Voxelise a scene's true occupancy (a cell is occupied when its box meets
-    /// a solid, surface or interior) and write it as an OctoMap .bt or .ot file.
+    /// Write a scene's true occupancy as an OctoMap file
+    ///
+    /// A cell is occupied when its box meets a solid, surface or interior.
     GroundTruth(GroundTruthArgs),
-    /// Compare a summary.csv with a committed baseline; exit 1 with a table of
-    /// the metrics whose mean drifted past its tolerance.
+    /// Compare a summary.csv with a baseline; exit 1 on a regression
+    ///
+    /// Prints a table of the metrics whose mean drifted past its tolerance.
     Regress(RegressArgs),
 }
 

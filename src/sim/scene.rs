@@ -98,6 +98,8 @@ pub struct Scene {
     pub name: String,
     /// The file it came from.
     pub source: PathBuf,
+    /// Free text from the file.
+    pub description: String,
     /// The region the map covers (and the ground truth voxelises).
     pub workspace: Bounds,
     objects: Vec<SceneObject>,
@@ -274,7 +276,6 @@ impl Scene {
     /// Reads a scene file. Mesh paths are relative to the scene file.
     pub fn load(path: &Path) -> Result<Self> {
         let file: SceneFile = read_toml(path)?;
-        let _ = &file.description;
         let bad = |msg: String| Error::input(path, msg);
         let ws = &file.workspace;
         if ws.min.iter().chain(&ws.max).any(|v| !v.is_finite())
@@ -332,6 +333,7 @@ impl Scene {
         Ok(Self {
             name: file.name.unwrap_or_else(|| stem(path)),
             source: path.to_path_buf(),
+            description: file.description,
             workspace,
             objects,
             bvh,
