@@ -2,9 +2,8 @@
 
 use super::GroundTruthArgs;
 use crate::error::{Error, Result};
-use crate::eval::ground_truth::voxelise;
-use crate::mapping::octomap_io::{is_occupied, write_octree};
-use crate::mapping::octree::DEPTH;
+use crate::eval::ground_truth::{cell_counts, voxelise};
+use crate::mapping::octomap_io::write_octree;
 use crate::mapping::Clamp;
 use crate::sim::scene::Scene;
 use std::time::Instant;
@@ -33,15 +32,7 @@ pub(crate) fn run(args: GroundTruthArgs) -> Result<()> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
     write_octree(&args.out, &truth, Clamp::OCTOMAP)?;
-    let (mut occupied, mut free) = (0u64, 0u64);
-    truth.visit_leaves(|leaf| {
-        let cells = 1u64 << (3 * (DEPTH - leaf.depth) as u64);
-        if is_occupied(leaf.value) {
-            occupied += cells;
-        } else {
-            free += cells;
-        }
-    });
+    let (occupied, free) = cell_counts(&truth);
     eprintln!(
         "ground truth of '{}' at {} m: {occupied} occupied and {free} free cells ({} tree nodes) in {seconds:.2} s; wrote {}",
         scene.name,

@@ -24,6 +24,20 @@ pub fn voxelise(scene: &Scene, resolution: f64) -> Octree {
     tree
 }
 
+/// Finest cells of a tree that are occupied and free (OctoMap's threshold).
+pub fn cell_counts(tree: &Octree) -> (u64, u64) {
+    let (mut occupied, mut free) = (0u64, 0u64);
+    tree.visit_leaves(|leaf| {
+        let cells = 1u64 << (3 * (DEPTH - leaf.depth) as u64);
+        if crate::mapping::octomap_io::is_occupied(leaf.value) {
+            occupied += cells;
+        } else {
+            free += cells;
+        }
+    });
+    (occupied, free)
+}
+
 fn cell_bounds(tree: &Octree, key: &Key, depth: u8) -> Bounds {
     let c = tree.center(key, depth);
     let h = tree.node_size(depth) / 2.0;
@@ -92,16 +106,7 @@ mod tests {
             "[[object]]\nshape = \"box\"\nsize = [0.2, 0.2, 0.2]\nxyz = [0.113, 0.087, 0.1042]\n",
         );
         let truth = voxelise(&s, 0.05);
-        let mut occupied = 0usize;
-        let mut free = 0usize;
-        truth.visit_leaves(|leaf| {
-            let cells = 1usize << (3 * (DEPTH - leaf.depth) as usize);
-            if is_occupied(leaf.value) {
-                occupied += cells;
-            } else {
-                free += cells;
-            }
-        });
+        let (occupied, free) = cell_counts(&truth);
         assert_eq!(occupied, 5 * 5 * 5);
         assert_eq!(
             occupied + free,
@@ -112,12 +117,7 @@ mod tests {
         let (_d, s) =
             scene("[[object]]\nshape = \"sphere\"\nradius = 0.2\nxyz = [0.013, -0.021, 0.007]\n");
         let truth = voxelise(&s, 0.02);
-        let mut cells = 0usize;
-        truth.visit_leaves(|leaf| {
-            if is_occupied(leaf.value) {
-                cells += 1 << (3 * (DEPTH - leaf.depth) as usize);
-            }
-        });
+        let (cells, _) = cell_counts(&truth);
         let volume = cells as f64 * 0.02f64.powi(3);
         let sphere = 4.0 / 3.0 * std::f64::consts::PI * 0.2f64.powi(3);
         assert!(
