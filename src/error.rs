@@ -82,6 +82,46 @@ pub fn read_text(path: &Path) -> Result<String> {
 
 /// Parses a TOML file into `T`, naming the file and the offending line on failure.
 pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    read_toml_with(path, &[])
+}
+
+/// Parses a TOML file into `T` after setting numeric fields: each override is
+/// a dotted path (`sensor.max_range`, `world_from_robot.sigma.3`) and the
+/// number it takes. The path must name an existing number.
+pub fn read_toml_with<T: serde::de::DeserializeOwned>(
+    path: &Path,
+    overrides: &[(String, f64)],
+) -> Result<T> {
     let text = read_text(path)?;
-    toml::from_str(&text).map_err(|e| Error::input(path, format!("malformed TOML: {e}")))
+    let mut value: toml::Value =
+        toml::from_str(&text).map_err(|e| Error::input(path, format!("malformed TOML: {e}")))?;
+    for (field, number) in overrides {
+        set_number(&mut value, field, *number).map_err(|e| Error::input(path, e))?;
+    }
+    value
+        .try_into()
+        .map_err(|e| Error::input(path, format!("malformed TOML: {e}")))
+}
+
+fn set_number(
+    value: &mut toml::Value,
+    field: &str,
+    number: f64,
+) -> std::result::Result<(), String> {
+    let mut slot = value;
+    for part in field.split('.') {
+        slot = match slot {
+            toml::Value::Table(t) => t.get_mut(part),
+            toml::Value::Array(a) => part.parse::<usize>().ok().and_then(|i| a.get_mut(i)),
+            _ => None,
+        }
+        .ok_or_else(|| format!("sweep field '{field}': no '{part}' here"))?;
+    }
+    match slot {
+        toml::Value::Float(f) => *f = number,
+        toml::Value::Integer(i) if number.fract() == 0.0 => *i = number as i64,
+        toml::Value::Integer(_) => *slot = toml::Value::Float(number),
+        _ => return Err(format!("sweep field '{field}' is not a number")),
+    }
+    Ok(())
 }

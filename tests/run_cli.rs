@@ -73,8 +73,8 @@ fn quickstart_shows_the_paper_claims() {
     let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
     let mean = |method: &str, metric: &str| -> f64 {
         rows.iter()
-            .find(|r| &r[0] == method && &r[1] == metric)
-            .unwrap()[3]
+            .find(|r| &r[1] == method && &r[2] == metric)
+            .unwrap()[4]
             .parse()
             .unwrap()
     };
@@ -131,10 +131,10 @@ fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
     let row = lines
         .iter()
-        .position(|l| l.starts_with("unscented,false_free_rate,"))
+        .position(|l| l.starts_with(",unscented,false_free_rate,"))
         .unwrap();
     let mut fields: Vec<String> = lines[row].split(',').map(String::from).collect();
-    fields[3] = format!("{}", fields[3].parse::<f64>().unwrap() + 0.05);
+    fields[4] = format!("{}", fields[4].parse::<f64>().unwrap() + 0.05);
     lines[row] = fields.join(",");
     let worse = dir.path().join("worse.csv");
     std::fs::write(&worse, lines.join("\n") + "\n").unwrap();
@@ -166,4 +166,70 @@ fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
         "results/baselines/quickstart.csv",
     ]);
     assert_eq!(missing.status.code(), Some(2));
+}
+
+#[test]
+fn sweeps_run_every_cell_and_reject_unknown_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = env!("CARGO_MANIFEST_DIR");
+    let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
+        .unwrap()
+        .replace("../", &format!("{root}/"))
+        .replace(
+            "profiles/collaborative.toml",
+            &format!("{root}/experiments/profiles/collaborative.toml"),
+        )
+        .replace("seeds = [1, 2, 3]", "seeds = [4]")
+        .replacen(
+            "[robot]",
+            "[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [0.0, 2.0]\n\n[robot]",
+            1,
+        );
+    let path = dir.path().join("sweep.toml");
+    std::fs::write(&path, &text).unwrap();
+    let out = dir.path().join("out");
+    let result = sigmap(&[
+        "run",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    let mut reader = csv::Reader::from_path(out.join("runs.csv")).unwrap();
+    let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
+    assert_eq!(rows.len(), 2 * 3);
+    assert_eq!(&rows[0][0], "pose_error_scale=0");
+    assert_eq!(&rows[5][0], "pose_error_scale=2");
+    let headers = reader.headers().unwrap().clone();
+    let anees = headers.iter().position(|h| h == "anees").unwrap();
+    let value = |row: usize| -> f64 { rows[row][anees].parse().unwrap() };
+    // Without pose error the blind covariance is the honest one; with it, not.
+    assert!(
+        (value(0) - value(1)).abs() < 1e-6,
+        "blind = unscented at scale 0"
+    );
+    assert!(
+        value(3) > 10.0 * value(4),
+        "blind over-confident at scale 2"
+    );
+
+    let bad = text.replace("pose_error_scale", "experiment.sensor.max_rnage");
+    std::fs::write(&path, bad).unwrap();
+    let result = sigmap(&[
+        "run",
+        path.to_str().unwrap(),
+        "--out",
+        dir.path().join("bad").to_str().unwrap(),
+    ]);
+    assert_eq!(result.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&result.stderr).contains("max_rnage"));
+    assert!(
+        !dir.path().join("bad").join("runs.csv").exists(),
+        "a config error is found before any run"
+    );
 }

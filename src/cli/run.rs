@@ -18,6 +18,16 @@ use std::sync::Mutex;
 /// `sigmap run`.
 pub(crate) fn run(args: RunArgs) -> Result<()> {
     let experiment = Experiment::load(&args.experiment)?;
+    // Every cell is loaded (and so checked) before any run starts.
+    let cells: Vec<Experiment> = experiment
+        .cells()
+        .iter()
+        .map(|cell| Experiment::load_cell(&args.experiment, cell))
+        .collect::<Result<_>>()?;
+    let labels: Vec<String> = cells
+        .iter()
+        .map(|c| Experiment::cell_label(&c.cell))
+        .collect();
     let out = args
         .out
         .clone()
@@ -37,14 +47,14 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     let mut rows: Vec<RunRow> = read_rows(&runs_path)?;
     rows.extend(read_journal(&journal_path)?);
     let mut timings: Vec<TimingRow> = read_rows(&timings_path)?;
-    let done: BTreeSet<u64> = rows.iter().map(|r| r.seed).collect();
-    let pending: Vec<u64> = experiment
-        .seeds
-        .iter()
-        .copied()
-        .filter(|s| !done.contains(s))
+    let done: BTreeSet<(String, u64)> = rows.iter().map(|r| (r.cell.clone(), r.seed)).collect();
+    let pending: Vec<(usize, u64)> = (0..cells.len())
+        .flat_map(|c| experiment.seeds.iter().map(move |&s| (c, s)))
+        .filter(|(c, s)| !done.contains(&(labels[*c].clone(), *s)))
         .collect();
-    let truth = ground_truth(&experiment);
+    let truths: Vec<_> = with_threads(args.run.threads, || {
+        cells.par_iter().map(ground_truth).collect()
+    })?;
     let bar = progress_bar(pending.len(), "runs", args.run.quiet);
     let journal = Mutex::new(
         std::fs::OpenOptions::new()
@@ -57,9 +67,9 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     let finished = with_threads(args.run.threads, || {
         pending
             .par_iter()
-            .map(|&seed| -> Result<(Vec<RunRow>, Vec<TimingRow>)> {
-                let (new_rows, new_timings, maps) = run_seed(&experiment, &truth, seed)?;
-                if seed == first_seed {
+            .map(|&(c, seed)| -> Result<(Vec<RunRow>, Vec<TimingRow>)> {
+                let (new_rows, new_timings, maps) = run_seed(&cells[c], &truths[c], seed)?;
+                if c == 0 && seed == first_seed {
                     for (method, map) in experiment.methods.iter().zip(&maps) {
                         let path = out.join(format!("map_{method}.bt"));
                         write_octree(&path, map, Clamp::OCTOMAP)?;
@@ -94,19 +104,21 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         rows.extend(r);
         timings.extend(t);
     }
-    let order = |m: &str| {
+    let method_order = |m: &str| {
         experiment
             .methods
             .iter()
             .position(|x| x.as_str() == m)
             .unwrap_or(usize::MAX)
     };
-    rows.sort_by_key(|r| (r.seed, order(&r.method)));
-    rows.dedup_by(|a, b| a.seed == b.seed && a.method == b.method);
-    timings.sort_by_key(|r| (r.seed, order(&r.method)));
+    let cell_order = |c: &str| labels.iter().position(|x| x == c).unwrap_or(usize::MAX);
+    rows.retain(|r| cell_order(&r.cell) != usize::MAX && method_order(&r.method) != usize::MAX);
+    rows.sort_by_key(|r| (cell_order(&r.cell), r.seed, method_order(&r.method)));
+    rows.dedup_by(|a, b| a.cell == b.cell && a.seed == b.seed && a.method == b.method);
+    timings.sort_by_key(|r| (cell_order(&r.cell), r.seed, method_order(&r.method)));
     write_rows(&runs_path, &rows)?;
     write_rows(&timings_path, &timings)?;
-    let summary = summarise(&rows, &experiment.methods);
+    let summary = summarise(&rows, &labels, &experiment.methods);
     write_rows(&out.join("summary.csv"), &summary)?;
     std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
     if !args.run.quiet {
@@ -136,18 +148,25 @@ fn print_headline(
     summary: &[crate::experiment::runner::SummaryRow],
     rows: usize,
 ) {
+    // The headline is the first cell's (the whole sweep is in summary.csv).
+    let first = summary.first().map(|s| s.cell.clone()).unwrap_or_default();
     let get = |method: &str, metric: &str| {
         summary
             .iter()
-            .find(|s| s.method == method && s.metric == metric)
+            .find(|s| s.cell == first && s.method == method && s.metric == metric)
             .map_or(f64::NAN, |s| s.mean)
     };
     println!(
-        "{}: {} seeds x {} methods ({rows} runs), {} m voxels; means over seeds",
+        "{}: {} seeds x {} methods ({rows} runs), {} m voxels; means over seeds{}",
         experiment.name,
         experiment.seeds.len(),
         experiment.methods.len(),
-        experiment.resolution
+        experiment.resolution,
+        if first.is_empty() {
+            String::new()
+        } else {
+            format!(", cell {first}")
+        }
     );
     println!(
         "{:<11} {:>7} {:>7} {:>7} {:>11} {:>9} {:>7} {:>8} {:>9}",

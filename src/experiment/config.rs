@@ -1,7 +1,7 @@
 //! The experiment file: what is simulated (scene, robot and mount, sensor,
 //! error profile, viewpoints, seed). Paths are relative to the experiment file.
 
-use crate::error::{read_toml, Error, Result};
+use crate::error::{read_toml_with, Error, Result};
 use crate::geometry::{Isometry3, Pose, Vector3};
 use crate::sim::ik::{self, IkOptions, IkTarget};
 use crate::sim::profile::ErrorProfile;
@@ -32,6 +32,22 @@ struct ExperimentFile {
     sensor: ScannerSpec,
     #[serde(rename = "viewpoint", default)]
     viewpoints: Vec<ViewpointSpec>,
+    #[serde(rename = "sweep", default)]
+    sweeps: Vec<SweepAxis>,
+}
+
+/// One sweep axis: a numeric field and the values it takes. Fields:
+/// `pose_error_scale` (multiplies every pose-error sigma of the profile),
+/// `experiment.<path>`, `profile.<path>` or `scene.<path>` (a number in that
+/// file, by dotted path, e.g. `experiment.sensor.max_range`,
+/// `profile.range.sigma0`, `scene.object.2.radius`).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SweepAxis {
+    /// The field.
+    pub field: String,
+    /// Its values.
+    pub values: Vec<f64>,
 }
 
 fn default_seed() -> u64 {
@@ -129,17 +145,68 @@ pub struct Experiment {
     pub profile: ErrorProfile,
     /// The viewpoints, resolved to joint configurations.
     pub viewpoints: Vec<Viewpoint>,
+    /// The sweep axes (runs are their cartesian product times the seeds).
+    pub sweep: Vec<SweepAxis>,
+    /// The sweep values this experiment was loaded with (empty: the base).
+    pub cell: Vec<(String, f64)>,
 }
 
 impl Experiment {
     /// Reads an experiment and everything it names, solves the look-at
     /// viewpoints, and checks them. Every error names its file.
     pub fn load(path: &Path) -> Result<Self> {
-        let file: ExperimentFile = read_toml(path)?;
+        Self::load_cell(path, &[])
+    }
+
+    /// Reads the experiment with one sweep cell's values applied.
+    pub fn load_cell(path: &Path, cell: &[(String, f64)]) -> Result<Self> {
+        let mut by_file: [Vec<(String, f64)>; 3] = Default::default();
+        let mut pose_scale = None;
+        for (field, value) in cell {
+            if !value.is_finite() {
+                return Err(Error::input(
+                    path,
+                    format!("sweep field '{field}': value {value} is not finite"),
+                ));
+            }
+            let target = [("experiment.", 0), ("profile.", 1), ("scene.", 2)]
+                .iter()
+                .find_map(|(prefix, i)| {
+                    field
+                        .strip_prefix(prefix)
+                        .map(|rest| (*i, rest.to_string()))
+                });
+            match (field.as_str(), target) {
+                ("pose_error_scale", _) if *value >= 0.0 => pose_scale = Some(*value),
+                ("pose_error_scale", _) => {
+                    return Err(Error::input(
+                        path,
+                        format!("pose_error_scale = {value} must be >= 0"),
+                    ))
+                }
+                (_, Some((i, rest))) => by_file[i].push((rest, *value)),
+                _ => return Err(Error::input(
+                    path,
+                    format!(
+                        "unknown sweep field '{field}' (use pose_error_scale, experiment.<path>, \
+                             profile.<path> or scene.<path>)"
+                    ),
+                )),
+            }
+        }
+        let file: ExperimentFile = read_toml_with(path, &by_file[0])?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let bad = |msg: String| Error::input(path, msg);
-        let scene = Scene::load(&dir.join(&file.scene))?;
-        let profile = ErrorProfile::load(&dir.join(&file.error_profile))?;
+        let scene = Scene::load_with(&dir.join(&file.scene), &by_file[2])?;
+        let mut profile = ErrorProfile::load_with(&dir.join(&file.error_profile), &by_file[1])?;
+        if let Some(scale) = pose_scale {
+            profile.scale_pose_errors(scale);
+        }
+        for axis in &file.sweeps {
+            if axis.values.is_empty() {
+                return Err(bad(format!("[[sweep]] '{}' has no values", axis.field)));
+            }
+        }
         let robot = Robot::load(&dir.join(&file.robot.urdf))?;
         let mount = &file.robot;
         let arm = robot.chain(&mount.base_link, &mount.flange_link)?;
@@ -218,6 +285,8 @@ impl Experiment {
             scanner,
             profile,
             viewpoints: Vec::new(),
+            sweep: file.sweeps.clone(),
+            cell: cell.to_vec(),
         };
         for (index, spec) in file.viewpoints.iter().enumerate() {
             let viewpoint = experiment
@@ -226,6 +295,31 @@ impl Experiment {
             experiment.viewpoints.push(viewpoint);
         }
         Ok(experiment)
+    }
+
+    /// The sweep cells: the cartesian product of the axes' values, first axis
+    /// outermost (one empty cell without a sweep).
+    pub fn cells(&self) -> Vec<Vec<(String, f64)>> {
+        self.sweep.iter().fold(vec![Vec::new()], |cells, axis| {
+            cells
+                .iter()
+                .flat_map(|cell| {
+                    axis.values.iter().map(move |v| {
+                        let mut c = cell.clone();
+                        c.push((axis.field.clone(), *v));
+                        c
+                    })
+                })
+                .collect()
+        })
+    }
+
+    /// A cell's label in files: `field=value;field=value` (empty for the base).
+    pub fn cell_label(cell: &[(String, f64)]) -> String {
+        cell.iter()
+            .map(|(f, v)| format!("{f}={v}"))
+            .collect::<Vec<_>>()
+            .join(";")
     }
 
     /// The nominal `scene_from_camera` at a joint configuration.

@@ -15,6 +15,8 @@ pub fn default_tolerance(metric: &str, baseline: f64) -> f64 {
 /// One compared (method, metric).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Comparison {
+    /// The sweep cell.
+    pub cell: String,
     /// The method.
     pub method: String,
     /// The metric.
@@ -50,13 +52,14 @@ pub fn compare(
         .map(|b| {
             let current = current
                 .iter()
-                .find(|c| c.method == b.method && c.metric == b.metric)
+                .find(|c| c.cell == b.cell && c.method == b.method && c.metric == b.metric)
                 .map_or(f64::NAN, |c| c.mean);
             let tolerance = overrides
                 .iter()
                 .find(|(m, _)| *m == b.metric)
                 .map_or_else(|| default_tolerance(&b.metric, b.mean), |(_, t)| *t);
             Comparison {
+                cell: b.cell.clone(),
                 method: b.method.clone(),
                 metric: b.metric.clone(),
                 baseline: b.mean,
@@ -73,6 +76,7 @@ mod tests {
 
     fn row(method: &str, metric: &str, mean: f64) -> SummaryRow {
         SummaryRow {
+            cell: String::new(),
             method: method.into(),
             metric: metric.into(),
             n: 3,

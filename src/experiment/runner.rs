@@ -18,6 +18,8 @@ use std::time::Instant;
 /// One row of `runs.csv`: a seed, a method, and every score.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct RunRow {
+    /// The sweep cell, `field=value;...` (empty without a sweep).
+    pub cell: String,
     /// The run's seed.
     pub seed: u64,
     /// The modelling method.
@@ -67,6 +69,8 @@ pub struct RunRow {
 /// Stage timings of one (seed, method), for `timings.csv` (they vary run to run).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TimingRow {
+    /// The sweep cell.
+    pub cell: String,
     /// The run's seed.
     pub seed: u64,
     /// The method.
@@ -128,7 +132,9 @@ pub fn run_seed(
         let score_s = start.elapsed().as_secs_f64();
         let stats = map.stats();
         let c = |f: fn(&ConsistencyReport) -> f64| consistency.as_ref().map_or(f64::NAN, f);
+        let cell = Experiment::cell_label(&experiment.cell);
         rows.push(RunRow {
+            cell: cell.clone(),
             seed,
             method: method.as_str().into(),
             resolution: experiment.resolution,
@@ -153,6 +159,7 @@ pub fn run_seed(
             bytes: stats.bytes,
         });
         timings.push(TimingRow {
+            cell,
             seed,
             method: method.as_str().into(),
             simulate_s,
@@ -208,6 +215,8 @@ fn metric(row: &RunRow, name: &str) -> f64 {
 /// over the seeds (Student t; a single seed has no interval).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct SummaryRow {
+    /// The sweep cell.
+    pub cell: String,
     /// The method.
     pub method: String,
     /// The metric (a `runs.csv` column).
@@ -239,13 +248,17 @@ fn t_quantile(dof: f64, p: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
-/// Per method and metric: mean and 95% interval over the rows' seeds.
-pub fn summarise(rows: &[RunRow], methods: &[Method]) -> Vec<SummaryRow> {
+/// Per cell (in `cells` order), method and metric: mean and 95% interval
+/// over the rows' seeds.
+pub fn summarise(rows: &[RunRow], cells: &[String], methods: &[Method]) -> Vec<SummaryRow> {
     let mut out = Vec::new();
-    for method in methods {
+    for (cell, method) in cells
+        .iter()
+        .flat_map(|c| methods.iter().map(move |m| (c, m)))
+    {
         let mine: Vec<&RunRow> = rows
             .iter()
-            .filter(|r| r.method == method.as_str())
+            .filter(|r| &r.cell == cell && r.method == method.as_str())
             .collect();
         for name in SUMMARY_METRICS {
             let values: Vec<f64> = mine
@@ -262,6 +275,7 @@ pub fn summarise(rows: &[RunRow], methods: &[Method]) -> Vec<SummaryRow> {
                 f64::NAN
             };
             out.push(SummaryRow {
+                cell: cell.clone(),
                 method: method.as_str().into(),
                 metric: name.into(),
                 n,

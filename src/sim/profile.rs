@@ -2,7 +2,7 @@
 //! `X_s = T_sw⁻¹ T_rw T_cr X_c` and of the range measurement.
 
 use super::sensor::RangeModel;
-use crate::error::{read_toml, Error, Result};
+use crate::error::{read_toml_with, Error, Result};
 use crate::geometry::Matrix6;
 use crate::uncertainty::CovarianceSpec;
 use serde::Deserialize;
@@ -66,7 +66,12 @@ struct ArmSpec {
 impl ErrorProfile {
     /// Reads and checks a profile file.
     pub fn load(path: &Path) -> Result<Self> {
-        let file: ProfileFile = read_toml(path)?;
+        Self::load_with(path, &[])
+    }
+
+    /// Reads a profile with numeric fields overridden (dotted paths).
+    pub fn load_with(path: &Path, overrides: &[(String, f64)]) -> Result<Self> {
+        let file: ProfileFile = read_toml_with(path, overrides)?;
         let bad = |msg: String| Error::input(path, msg);
         file.range.check().map_err(bad)?;
         let world_from_scene = file
@@ -120,6 +125,20 @@ impl ErrorProfile {
             robot_from_camera,
             arm,
         })
+    }
+}
+
+impl ErrorProfile {
+    /// Multiplies every pose-error standard deviation (T_sw, T_cr, T_rw or its
+    /// joint sigmas) by `scale`; the range model is kept.
+    pub fn scale_pose_errors(&mut self, scale: f64) {
+        let variance = scale * scale;
+        self.world_from_scene *= variance;
+        self.robot_from_camera *= variance;
+        match &mut self.arm {
+            ArmError::Pose(c) => *c *= variance,
+            ArmError::Joints(s) => s.iter_mut().for_each(|v| *v *= scale),
+        }
     }
 }
 

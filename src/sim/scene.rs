@@ -5,7 +5,7 @@
 //! is placed in the world by `world_from_scene` (T_sw) in the experiment.
 
 use super::mesh::Mesh;
-use crate::error::{read_toml, Error, Result};
+use crate::error::{read_toml_with, Error, Result};
 use crate::geometry::{Isometry3, Point3, Pose, Vector3};
 use parry3d_f64::bounding_volume::Aabb;
 use parry3d_f64::math::{Pose as ParryPose, Rotation as ParryRotation, Vector as ParryVector};
@@ -275,7 +275,13 @@ impl ObjectSpec {
 impl Scene {
     /// Reads a scene file. Mesh paths are relative to the scene file.
     pub fn load(path: &Path) -> Result<Self> {
-        let file: SceneFile = read_toml(path)?;
+        Self::load_with(path, &[])
+    }
+
+    /// Reads a scene with numeric fields overridden (dotted paths, e.g.
+    /// `object.2.radius`).
+    pub fn load_with(path: &Path, overrides: &[(String, f64)]) -> Result<Self> {
+        let file: SceneFile = read_toml_with(path, overrides)?;
         let bad = |msg: String| Error::input(path, msg);
         let ws = &file.workspace;
         if ws.min.iter().chain(&ws.max).any(|v| !v.is_finite())
