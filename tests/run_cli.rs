@@ -233,3 +233,65 @@ fn sweeps_run_every_cell_and_reject_unknown_fields() {
         "a config error is found before any run"
     );
 }
+
+#[test]
+fn shards_merge_into_the_one_machine_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = dir.path().join("whole");
+    run(&whole, &[]);
+    let shard = |i: &str| {
+        let out = dir.path().join(format!("shard{}", &i[..1]));
+        run(&out, &["--shard", i]);
+        out
+    };
+    let (a, b) = (shard("1/2"), shard("2/2"));
+    let read = |p: &std::path::Path| std::fs::read(p).unwrap();
+    assert_ne!(
+        read(&a.join("runs.csv")),
+        read(&whole.join("runs.csv")),
+        "a shard holds part of the runs"
+    );
+    let merged = dir.path().join("merged");
+    let out = sigmap(&[
+        "merge",
+        "experiments/quickstart.toml",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--out",
+        merged.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for file in ["runs.csv", "summary.csv"] {
+        assert_eq!(read(&merged.join(file)), read(&whole.join(file)), "{file}");
+    }
+    // A missing shard, an out-of-range shard, and a shard of another experiment are refused.
+    let out = sigmap(&[
+        "merge",
+        "experiments/quickstart.toml",
+        a.to_str().unwrap(),
+        "--out",
+        dir.path().join("m2").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing"));
+    let out = sigmap(&["run", "experiments/quickstart.toml", "--shard", "3/2"]);
+    assert_eq!(out.status.code(), Some(2));
+    let manifest = std::fs::read_to_string(b.join("run.toml"))
+        .unwrap()
+        .replace("quickstart", "paper");
+    std::fs::write(b.join("run.toml"), manifest).unwrap();
+    let out = sigmap(&[
+        "merge",
+        "experiments/quickstart.toml",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--out",
+        dir.path().join("m3").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("run.toml"));
+}

@@ -57,10 +57,28 @@ enum Command {
     ///
     /// A cell is occupied when its box meets a solid, surface or interior.
     GroundTruth(GroundTruthArgs),
+    /// Join the folders of `sigmap run --shard i/n` into the usual files
+    ///
+    /// Checks that every shard ran the same experiment inputs and sigmap
+    /// version, and that no run is missing; the merged runs.csv and
+    /// summary.csv are byte-identical to a one-machine run.
+    Merge(MergeArgs),
     /// Compare a summary.csv with a baseline; exit 1 on a regression
     ///
     /// Prints a table of the metrics whose mean drifted past its tolerance.
     Regress(RegressArgs),
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct MergeArgs {
+    /// The experiment file the shards ran.
+    experiment: PathBuf,
+    /// The shards' output folders.
+    #[arg(required = true)]
+    shards: Vec<PathBuf>,
+    /// Output folder [default: results/<experiment>].
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -132,6 +150,10 @@ pub(crate) struct RunArgs {
     /// Redo every run, discarding earlier results.
     #[arg(long)]
     fresh: bool,
+    /// Run only shard i of n (1-based): every n-th run of the fixed list of
+    /// (cell, seed); join the shards' folders with `sigmap merge`.
+    #[arg(long, value_parser = parse_shard)]
+    shard: Option<(usize, usize)>,
     #[command(flatten)]
     run: RunOptions,
 }
@@ -189,6 +211,24 @@ pub(crate) struct PropagateArgs {
     out: Option<PathBuf>,
 }
 
+fn parse_shard(text: &str) -> std::result::Result<(usize, usize), String> {
+    let (i, n) = text
+        .split_once('/')
+        .ok_or("expected i/n, for example 2/4")?;
+    let (i, n): (usize, usize) = (
+        i.trim()
+            .parse()
+            .map_err(|_| format!("'{i}' is not a shard number"))?,
+        n.trim()
+            .parse()
+            .map_err(|_| format!("'{n}' is not a shard count"))?,
+    );
+    if n == 0 || i == 0 || i > n {
+        return Err(format!("shard {i}/{n} is out of range: use 1 <= i <= n"));
+    }
+    Ok((i, n))
+}
+
 fn parse_point(text: &str) -> std::result::Result<[f64; 3], String> {
     let values: Vec<f64> = text
         .split(',')
@@ -240,6 +280,7 @@ pub fn main() -> i32 {
         Command::Map(args) => map::run(args),
         Command::GroundTruth(args) => ground_truth::run(args),
         Command::Regress(args) => regress::run(args),
+        Command::Merge(args) => run::merge(args),
     };
     match result {
         Ok(()) => 0,

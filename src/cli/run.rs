@@ -1,10 +1,11 @@
 //! `sigmap run`: the experiment's seeds in parallel, each method on each
 //! seed's scans, scored; results appended as runs finish, resumable.
 
-use super::{progress_bar, with_threads, RunArgs};
+use super::{progress_bar, with_threads, MergeArgs, RunArgs};
 use crate::error::{Error, Result};
+use crate::experiment::model::Method;
 use crate::experiment::runner::{
-    ground_truth, read_rows, run_seed, summarise, write_rows, RunRow, TimingRow,
+    ground_truth, read_rows, run_seed, summarise, write_rows, RunRow, SummaryRow, TimingRow,
 };
 use crate::experiment::Experiment;
 use crate::mapping::octomap_io::write_octree;
@@ -12,7 +13,7 @@ use crate::mapping::Clamp;
 use rayon::prelude::*;
 use std::collections::BTreeSet;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// `sigmap run`.
@@ -48,10 +49,20 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     rows.extend(read_journal(&journal_path)?);
     let mut timings: Vec<TimingRow> = read_rows(&timings_path)?;
     let done: BTreeSet<(String, u64)> = rows.iter().map(|r| (r.cell.clone(), r.seed)).collect();
-    let pending: Vec<(usize, u64)> = (0..cells.len())
+    let (shard, shards) = args.shard.unwrap_or((1, 1));
+    // A shard takes every n-th run of the full, fixed list of (cell, seed).
+    let mine: Vec<(usize, u64)> = (0..cells.len())
         .flat_map(|c| experiment.seeds.iter().map(move |&s| (c, s)))
+        .enumerate()
+        .filter(|(k, _)| k % shards == shard - 1)
+        .map(|(_, run)| run)
+        .collect();
+    let pending: Vec<(usize, u64)> = mine
+        .iter()
+        .copied()
         .filter(|(c, s)| !done.contains(&(labels[*c].clone(), *s)))
         .collect();
+    write_manifest(&out, &experiment, shard, shards)?;
     let truths: Vec<_> = with_threads(args.run.threads, || {
         cells.par_iter().map(ground_truth).collect()
     })?;
@@ -104,9 +115,31 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         rows.extend(r);
         timings.extend(t);
     }
+    let runs = rows.len();
+    let summary = finalize(&out, &labels, &experiment.methods, rows, timings)?;
+    std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
+    if !args.run.quiet {
+        print_headline(&experiment, &summary, runs);
+        eprintln!(
+            "wrote {}/runs.csv, summary.csv, timings.csv and map_<method>.bt",
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+/// Sorts the rows into the one order every machine agrees on (cell, seed,
+/// method as the experiment lists them), writes runs.csv, timings.csv and
+/// summary.csv, and returns the summary.
+fn finalize(
+    out: &Path,
+    labels: &[String],
+    methods: &[Method],
+    mut rows: Vec<RunRow>,
+    mut timings: Vec<TimingRow>,
+) -> Result<Vec<SummaryRow>> {
     let method_order = |m: &str| {
-        experiment
-            .methods
+        methods
             .iter()
             .position(|x| x.as_str() == m)
             .unwrap_or(usize::MAX)
@@ -116,18 +149,126 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     rows.sort_by_key(|r| (cell_order(&r.cell), r.seed, method_order(&r.method)));
     rows.dedup_by(|a, b| a.cell == b.cell && a.seed == b.seed && a.method == b.method);
     timings.sort_by_key(|r| (cell_order(&r.cell), r.seed, method_order(&r.method)));
-    write_rows(&runs_path, &rows)?;
-    write_rows(&timings_path, &timings)?;
-    let summary = summarise(&rows, &labels, &experiment.methods);
+    timings.dedup_by(|a, b| a.cell == b.cell && a.seed == b.seed && a.method == b.method);
+    write_rows(&out.join("runs.csv"), &rows)?;
+    write_rows(&out.join("timings.csv"), &timings)?;
+    let summary = summarise(&rows, labels, methods);
     write_rows(&out.join("summary.csv"), &summary)?;
-    std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
-    if !args.run.quiet {
-        print_headline(&experiment, &summary, rows.len());
-        eprintln!(
-            "wrote {}/runs.csv, summary.csv, timings.csv and map_<method>.bt",
-            out.display()
-        );
+    Ok(summary)
+}
+
+/// FNV-1a over the bytes of every input file of the experiment: shards of
+/// different experiments (or edited inputs) do not merge.
+fn fingerprint(experiment: &Experiment) -> Result<String> {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for path in [
+        &experiment.source,
+        &experiment.profile.source,
+        &experiment.scene.source,
+        &experiment.robot.source,
+    ] {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        for b in bytes {
+            hash = (hash ^ b as u64).wrapping_mul(0x100_0000_01b3);
+        }
     }
+    Ok(format!("{hash:016x}"))
+}
+
+/// `run.toml`: which experiment, inputs, version and shard produced a folder.
+fn write_manifest(out: &Path, experiment: &Experiment, shard: usize, shards: usize) -> Result<()> {
+    let text = format!(
+        "# written by sigmap run; `sigmap merge` checks it\nexperiment = \"{}\"\nfingerprint = \"{}\"\nversion = \"{}\"\nshard = \"{shard}/{shards}\"\n",
+        experiment.name,
+        fingerprint(experiment)?,
+        env!("CARGO_PKG_VERSION")
+    );
+    let path = out.join("run.toml");
+    std::fs::write(&path, text).map_err(|e| Error::io(&path, e))
+}
+
+#[derive(serde::Deserialize)]
+struct Manifest {
+    experiment: String,
+    fingerprint: String,
+    version: String,
+    shard: String,
+}
+
+/// `sigmap merge`: joins shard folders into the usual files.
+pub(crate) fn merge(args: MergeArgs) -> Result<()> {
+    let experiment = Experiment::load(&args.experiment)?;
+    let labels: Vec<String> = experiment
+        .cells()
+        .iter()
+        .map(|c| Experiment::cell_label(c))
+        .collect();
+    let expected = fingerprint(&experiment)?;
+    let (mut rows, mut timings) = (Vec::new(), Vec::new());
+    for dir in &args.shards {
+        let manifest_path = dir.join("run.toml");
+        let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
+        if manifest.experiment != experiment.name || manifest.fingerprint != expected {
+            return Err(Error::input(
+                &manifest_path,
+                format!(
+                    "this shard ran experiment '{}' with other inputs (fingerprint {} vs {expected}); merge only shards of {}",
+                    manifest.experiment,
+                    manifest.fingerprint,
+                    args.experiment.display()
+                ),
+            ));
+        }
+        if manifest.version != env!("CARGO_PKG_VERSION") {
+            return Err(Error::input(
+                &manifest_path,
+                format!(
+                    "shard {} was written by sigmap {}, this is {}",
+                    manifest.shard,
+                    manifest.version,
+                    env!("CARGO_PKG_VERSION")
+                ),
+            ));
+        }
+        rows.extend(read_rows::<RunRow>(&dir.join("runs.csv"))?);
+        rows.extend(read_journal(&dir.join("runs.journal.csv"))?);
+        timings.extend(read_rows::<TimingRow>(&dir.join("timings.csv"))?);
+    }
+    let have: BTreeSet<(String, u64, String)> = rows
+        .iter()
+        .map(|r| (r.cell.clone(), r.seed, r.method.clone()))
+        .collect();
+    let missing: Vec<String> = labels
+        .iter()
+        .flat_map(|c| {
+            let methods = &experiment.methods;
+            experiment
+                .seeds
+                .iter()
+                .flat_map(move |s| methods.iter().map(move |m| (c, *s, *m)))
+        })
+        .filter(|(c, s, m)| !have.contains(&((*c).clone(), *s, m.as_str().to_string())))
+        .map(|(c, s, m)| format!("cell '{c}' seed {s} {m}"))
+        .collect();
+    if !missing.is_empty() {
+        return Err(Error::Usage(format!(
+            "{} runs are missing from the shards (first: {}); finish them with `sigmap run ... --shard i/n`",
+            missing.len(),
+            missing[0]
+        )));
+    }
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("results").join(&experiment.name));
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    finalize(&out, &labels, &experiment.methods, rows, timings)?;
+    write_manifest(&out, &experiment, 1, 1)?;
+    eprintln!(
+        "merged {} shards into {}/runs.csv, summary.csv and timings.csv",
+        args.shards.len(),
+        out.display()
+    );
     Ok(())
 }
 

@@ -185,13 +185,15 @@ impl Experiment {
                     ))
                 }
                 (_, Some((i, rest))) => by_file[i].push((rest, *value)),
-                _ => return Err(Error::input(
-                    path,
-                    format!(
+                _ => {
+                    return Err(Error::input(
+                        path,
+                        format!(
                         "unknown sweep field '{field}' (use pose_error_scale, experiment.<path>, \
                              profile.<path> or scene.<path>)"
                     ),
-                )),
+                    ))
+                }
             }
         }
         let file: ExperimentFile = read_toml_with(path, &by_file[0])?;
