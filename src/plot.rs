@@ -13,6 +13,8 @@ pub struct Series {
     pub name: String,
     /// Points `(x, y)`; non-finite values (and non-positive ones on log axes) are skipped.
     pub points: Vec<(f64, f64)>,
+    /// Error bars `(x, low, high)`, drawn as vertical segments (may be empty).
+    pub intervals: Vec<(f64, f64, f64)>,
 }
 
 /// A chart panel: title, axis labels, axis kinds, and its lines.
@@ -92,8 +94,31 @@ pub fn panels(path: &Path, panels: &[Panel]) -> Result<()> {
                     .collect()
             })
             .collect();
+        let bars: Vec<Vec<(f64, f64, f64)>> = panel
+            .series
+            .iter()
+            .map(|s| {
+                s.intervals
+                    .iter()
+                    .filter_map(|&(x, lo, hi)| {
+                        Some((
+                            transform(x, panel.log_x)?,
+                            transform(lo, panel.log_y)?,
+                            transform(hi, panel.log_y)?,
+                        ))
+                    })
+                    .collect()
+            })
+            .collect();
         let xs = range(lines.iter().flatten().map(|p| p.0), panel.log_x);
-        let ys = range(lines.iter().flatten().map(|p| p.1), panel.log_y);
+        let ys = range(
+            lines
+                .iter()
+                .flatten()
+                .map(|p| p.1)
+                .chain(bars.iter().flatten().flat_map(|b| [b.1, b.2])),
+            panel.log_y,
+        );
         let mut chart = ChartBuilder::on(area)
             .caption(panel.title, ("sans-serif", 18))
             .margin(12)
@@ -112,6 +137,11 @@ pub fn panels(path: &Path, panels: &[Panel]) -> Result<()> {
             .map_err(|e| err(&e))?;
         for (k, (series, points)) in panel.series.iter().zip(lines).enumerate() {
             let colour = COLOURS[k % COLOURS.len()];
+            chart
+                .draw_series(bars[k].iter().map(|&(x, lo, hi)| {
+                    PathElement::new(vec![(x, lo), (x, hi)], colour.stroke_width(1))
+                }))
+                .map_err(|e| err(&e))?;
             let dots = points.len() <= 60;
             chart
                 .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))

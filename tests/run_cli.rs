@@ -40,6 +40,16 @@ fn results_do_not_depend_on_threads_and_survive_interruption() {
     for method in ["blind", "unscented", "ray_update"] {
         assert!(one.join(format!("map_{method}.bt")).exists());
     }
+    for chart in ["coverage.svg", "slice.svg"] {
+        let svg = std::fs::read_to_string(one.join(chart)).unwrap();
+        assert!(
+            svg.starts_with("<svg") && svg.contains("unscented"),
+            "{chart}"
+        );
+    }
+    assert!(std::fs::read_to_string(one.join("slice.svg"))
+        .unwrap()
+        .contains("false-free"));
     // An interrupted run: only the first seed's rows reached the journal,
     // the last one cut mid-line. The re-run completes the rest.
     let runs = String::from_utf8(read(&one.join("runs.csv"))).unwrap();
@@ -204,6 +214,8 @@ fn sweeps_run_every_cell_and_reject_unknown_fields() {
     let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
     assert_eq!(rows.len(), 2 * 3);
     assert_eq!(&rows[0][0], "pose_error_scale=0");
+    let scores = std::fs::read_to_string(out.join("scores.svg")).unwrap();
+    assert!(scores.contains("pose_error_scale") && scores.contains("false-free rate"));
     assert_eq!(&rows[5][0], "pose_error_scale=2");
     let headers = reader.headers().unwrap().clone();
     let anees = headers.iter().position(|h| h == "anees").unwrap();

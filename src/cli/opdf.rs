@@ -22,6 +22,7 @@ pub(crate) fn run(args: OpdfArgs) -> Result<()> {
         .map(|i| -0.1 * r + i as f64 * (1.3 * r) / 2000.0)
         .collect();
     let curve = |name: String, sigma: f64, sigma_o: f64| Series {
+        intervals: Vec::new(),
         name,
         points: lambdas
             .iter()

@@ -126,6 +126,7 @@ fn plot_sweep(path: &Path, rows: &[SweepRow], samples: usize) -> Result<()> {
         let mut out: Vec<Series> = ["blind", "jacobian", "unscented"]
             .iter()
             .map(|m| Series {
+                intervals: Vec::new(),
                 name: m.to_string(),
                 points: rows
                     .iter()
@@ -135,6 +136,7 @@ fn plot_sweep(path: &Path, rows: &[SweepRow], samples: usize) -> Result<()> {
             })
             .collect();
         out.push(Series {
+            intervals: Vec::new(),
             name: format!("MC noise (N={samples})"),
             points: rows
                 .iter()

@@ -4,6 +4,7 @@
 use super::{progress_bar, with_threads, MergeArgs, RunArgs};
 use crate::error::{Error, Result};
 use crate::experiment::model::Method;
+use crate::experiment::plots;
 use crate::experiment::runner::{
     ground_truth, read_rows, run_seed, summarise, write_rows, RunRow, SummaryRow, TimingRow,
 };
@@ -85,6 +86,20 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
                         let path = out.join(format!("map_{method}.bt"));
                         write_octree(&path, map, Clamp::OCTOMAP)?;
                     }
+                    let truth = &truths[0];
+                    let pairs: Vec<_> = experiment
+                        .methods
+                        .iter()
+                        .copied()
+                        .zip(maps.iter())
+                        .collect();
+                    plots::plot_slice(
+                        &out.join("slice.svg"),
+                        truth,
+                        &pairs,
+                        &cells[0].scene.workspace,
+                        plots::slice_height(truth),
+                    )?;
                 }
                 // One write per finished run, so an interruption loses only unfinished runs.
                 let mut text = Vec::new();
@@ -118,6 +133,18 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     let runs = rows.len();
     let summary = finalize(&out, &labels, &experiment.methods, rows, timings)?;
     std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
+    plots::plot_scores(
+        &out.join("scores.svg"),
+        &summary,
+        &experiment.cells(),
+        &experiment.methods,
+    )?;
+    plots::plot_coverage(
+        &out.join("coverage.svg"),
+        &summary,
+        &labels[0],
+        &experiment.methods,
+    )?;
     if !args.run.quiet {
         print_headline(&experiment, &summary, runs);
         eprintln!(

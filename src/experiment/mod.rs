@@ -2,6 +2,7 @@
 
 mod config;
 pub mod model;
+pub mod plots;
 pub mod regress;
 pub mod runner;
 mod scan_files;

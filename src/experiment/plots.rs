@@ -1,0 +1,268 @@
+//! The charts of `sigmap run`: each score against the sweep axis per method
+//! with 95% intervals, the coverage of the propagated covariances, and a slice
+//! of each map against the truth.
+
+use super::model::Method;
+use super::runner::SummaryRow;
+use crate::error::{Error, Result};
+use crate::eval::scores::UNKNOWN_BAND;
+use crate::geometry::Point3;
+use crate::mapping::Octree;
+use crate::plot::{panels, Panel, Series};
+use crate::sim::scene::Bounds;
+use crate::uncertainty::consistency::expected_coverage;
+use plotters::prelude::*;
+use std::path::Path;
+
+fn mean<'a>(
+    summary: &'a [SummaryRow],
+    cell: &str,
+    method: Method,
+    metric: &str,
+) -> Option<&'a SummaryRow> {
+    summary
+        .iter()
+        .find(|s| s.cell == cell && s.method == method.as_str() && s.metric == metric)
+}
+
+/// `scores.svg`: F1, false-free rate, Brier and ANEES against the first sweep
+/// axis, one line per method (and value of the other axes), 95% intervals.
+pub fn plot_scores(
+    path: &Path,
+    summary: &[SummaryRow],
+    cells: &[Vec<(String, f64)>],
+    methods: &[Method],
+) -> Result<()> {
+    let Some(axis) = cells
+        .first()
+        .and_then(|c| c.first())
+        .map(|(f, _)| f.clone())
+    else {
+        return Ok(());
+    };
+    let label = |cell: &[(String, f64)]| {
+        cell.iter()
+            .map(|(f, v)| format!("{f}={v}"))
+            .collect::<Vec<_>>()
+            .join(";")
+    };
+    let series_for = |metric: &str| -> Vec<Series> {
+        let mut out: Vec<Series> = Vec::new();
+        for &method in methods {
+            for cell in cells {
+                let rest = label(&cell[1..]);
+                let name = if rest.is_empty() {
+                    method.to_string()
+                } else {
+                    format!("{method} {rest}")
+                };
+                let Some(row) = mean(summary, &label(cell), method, metric) else {
+                    continue;
+                };
+                if !row.mean.is_finite() {
+                    continue;
+                }
+                let x = cell[0].1;
+                let index = match out.iter().position(|s| s.name == name) {
+                    Some(i) => i,
+                    None => {
+                        out.push(Series {
+                            name,
+                            points: Vec::new(),
+                            intervals: Vec::new(),
+                        });
+                        out.len() - 1
+                    }
+                };
+                out[index].points.push((x, row.mean));
+                if row.ci95_low.is_finite() {
+                    out[index].intervals.push((x, row.ci95_low, row.ci95_high));
+                }
+            }
+        }
+        out
+    };
+    let metrics = [
+        ("f1", "occupied F1", false),
+        ("false_free_rate", "false-free rate", false),
+        ("brier", "Brier score", false),
+        ("anees", "ANEES (3 = honest)", true),
+    ];
+    let all: Vec<(Vec<Series>, &str, bool)> = metrics
+        .iter()
+        .map(|(m, title, log)| (series_for(m), *title, *log))
+        .collect();
+    let list: Vec<Panel> = all
+        .iter()
+        .map(|(series, title, log)| Panel {
+            title,
+            x_label: &axis,
+            y_label: title,
+            log_x: false,
+            log_y: *log,
+            series,
+        })
+        .collect();
+    panels(path, &list)
+}
+
+/// `coverage.svg`: the share of true points inside the 1, 2, 3 sigma
+/// ellipsoids per method (first cell) against the χ²₃ expectation.
+pub fn plot_coverage(
+    path: &Path,
+    summary: &[SummaryRow],
+    cell: &str,
+    methods: &[Method],
+) -> Result<()> {
+    let mut series: Vec<Series> = methods
+        .iter()
+        .filter_map(|&m| {
+            let points: Vec<(f64, f64)> = ["coverage_1sigma", "coverage_2sigma", "coverage_3sigma"]
+                .iter()
+                .enumerate()
+                .filter_map(|(k, metric)| {
+                    mean(summary, cell, m, metric).map(|r| ((k + 1) as f64, r.mean))
+                })
+                .filter(|(_, v)| v.is_finite())
+                .collect();
+            (!points.is_empty()).then(|| Series {
+                name: m.to_string(),
+                points,
+                intervals: Vec::new(),
+            })
+        })
+        .collect();
+    series.push(Series {
+        name: "expected (χ², 3 DOF)".into(),
+        points: (1..=3)
+            .map(|k| (k as f64, expected_coverage(k as f64, 3)))
+            .collect(),
+        intervals: Vec::new(),
+    });
+    panels(
+        path,
+        &[Panel {
+            title: "coverage of the propagated covariances",
+            x_label: "k (sigma)",
+            y_label: "share of true points inside the k-sigma ellipsoid",
+            log_x: false,
+            log_y: false,
+            series: &series,
+        }],
+    )
+}
+
+/// The height of the slice: halfway between the lowest and the highest truly
+/// occupied cell (through the objects rather than the floor), on a cell centre.
+pub fn slice_height(truth: &Octree) -> f64 {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    truth.visit_leaves(|leaf| {
+        if leaf.value >= 0.0 {
+            let z = truth.center(&leaf.key, leaf.depth).z;
+            lo = lo.min(z);
+            hi = hi.max(z);
+        }
+    });
+    if !lo.is_finite() {
+        return 0.0;
+    }
+    let res = truth.resolution();
+    (((lo + hi) / 2.0 / res).floor() + 0.5) * res
+}
+
+/// `slice.svg`: a horizontal slice at height `z` of each map against the
+/// truth: correct occupied, correct free, false-free, false-occupied, unknown.
+pub fn plot_slice(
+    path: &Path,
+    truth: &Octree,
+    maps: &[(Method, &Octree)],
+    workspace: &Bounds,
+    z: f64,
+) -> Result<()> {
+    let err = |e: &dyn std::fmt::Display| Error::input(path, format!("cannot draw the slice: {e}"));
+    let res = truth.resolution();
+    let nx = ((workspace.max.x - workspace.min.x) / res).ceil() as usize;
+    let ny = ((workspace.max.y - workspace.min.y) / res).ceil() as usize;
+    let root = SVGBackend::new(path, (460 * maps.len().max(1) as u32, 500)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let colours = [
+        ("occupied, correct", RGBColor(30, 30, 30)),
+        ("free, correct", RGBColor(205, 225, 245)),
+        ("false-free", RGBColor(220, 30, 30)),
+        ("false-occupied", RGBColor(245, 150, 20)),
+        ("unknown", RGBColor(250, 250, 250)),
+    ];
+    for (area, (method, map)) in root.split_evenly((1, maps.len().max(1))).iter().zip(maps) {
+        let mut chart = ChartBuilder::on(area)
+            .caption(
+                format!("{method}: slice at z = {z:.3} m"),
+                ("sans-serif", 16),
+            )
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(45)
+            .build_cartesian_2d(
+                workspace.min.x..workspace.max.x,
+                workspace.min.y..workspace.max.y,
+            )
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .draw()
+            .map_err(|e| err(&e))?;
+        let mut cells: Vec<Vec<(f64, f64)>> = vec![Vec::new(); colours.len()];
+        for i in 0..nx {
+            for j in 0..ny {
+                let p = Point3::new(
+                    workspace.min.x + (i as f64 + 0.5) * res,
+                    workspace.min.y + (j as f64 + 0.5) * res,
+                    z,
+                );
+                let Some(t) = truth.value_at(&p) else {
+                    continue;
+                };
+                let class = match map.value_at(&p) {
+                    Some(l) if l >= UNKNOWN_BAND => {
+                        if t >= 0.0 {
+                            0
+                        } else {
+                            3
+                        }
+                    }
+                    Some(l) if l <= -UNKNOWN_BAND => {
+                        if t >= 0.0 {
+                            2
+                        } else {
+                            1
+                        }
+                    }
+                    _ => 4,
+                };
+                cells[class].push((p.x - res / 2.0, p.y - res / 2.0));
+            }
+        }
+        for ((name, colour), corners) in colours.iter().zip(cells) {
+            let colour = *colour;
+            chart
+                .draw_series(
+                    corners.into_iter().map(|(x, y)| {
+                        Rectangle::new([(x, y), (x + res, y + res)], colour.filled())
+                    }),
+                )
+                .map_err(|e| err(&e))?
+                .label(*name)
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 10, y + 5)], colour.filled())
+                });
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))
+}
