@@ -85,28 +85,29 @@ pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     read_toml_with(path, &[])
 }
 
-/// Parses a TOML file into `T` after setting numeric fields: each override is
-/// a dotted path (`sensor.max_range`, `world_from_robot.sigma.3`) and the
-/// number it takes. The path must name an existing number.
+/// Parses a TOML file into `T` after setting fields: each override is a
+/// dotted path (`sensor.max_range`, `world_from_robot.sigma.3`, `scene`) and
+/// the value it takes. The path must name an existing number (for a number)
+/// or string (for a string).
 pub fn read_toml_with<T: serde::de::DeserializeOwned>(
     path: &Path,
-    overrides: &[(String, f64)],
+    overrides: &[(String, toml::Value)],
 ) -> Result<T> {
     let text = read_text(path)?;
     let mut value: toml::Value =
         toml::from_str(&text).map_err(|e| Error::input(path, format!("malformed TOML: {e}")))?;
-    for (field, number) in overrides {
-        set_number(&mut value, field, *number).map_err(|e| Error::input(path, e))?;
+    for (field, new) in overrides {
+        set_value(&mut value, field, new).map_err(|e| Error::input(path, e))?;
     }
     value
         .try_into()
         .map_err(|e| Error::input(path, format!("malformed TOML: {e}")))
 }
 
-fn set_number(
+fn set_value(
     value: &mut toml::Value,
     field: &str,
-    number: f64,
+    new: &toml::Value,
 ) -> std::result::Result<(), String> {
     let mut slot = value;
     for part in field.split('.') {
@@ -117,11 +118,29 @@ fn set_number(
         }
         .ok_or_else(|| format!("sweep field '{field}': no '{part}' here"))?;
     }
-    match slot {
-        toml::Value::Float(f) => *f = number,
-        toml::Value::Integer(i) if number.fract() == 0.0 => *i = number as i64,
-        toml::Value::Integer(_) => *slot = toml::Value::Float(number),
-        _ => return Err(format!("sweep field '{field}' is not a number")),
+    match (&*slot, new) {
+        (toml::Value::Float(_) | toml::Value::Integer(_), toml::Value::Float(f)) => {
+            *slot = if slot.is_integer() && f.fract() == 0.0 {
+                toml::Value::Integer(*f as i64)
+            } else {
+                toml::Value::Float(*f)
+            }
+        }
+        (toml::Value::Float(_) | toml::Value::Integer(_), toml::Value::Integer(i)) => {
+            *slot = if slot.is_integer() {
+                toml::Value::Integer(*i)
+            } else {
+                toml::Value::Float(*i as f64)
+            }
+        }
+        (toml::Value::String(_), toml::Value::String(_)) => *slot = new.clone(),
+        _ => {
+            return Err(format!(
+                "sweep field '{field}' holds {}, the sweep gives {}",
+                slot.type_str(),
+                new.type_str()
+            ))
+        }
     }
     Ok(())
 }

@@ -46,8 +46,37 @@ struct ExperimentFile {
 pub struct SweepAxis {
     /// The field.
     pub field: String,
-    /// Its values.
-    pub values: Vec<f64>,
+    /// Its values: numbers, or strings for string fields such as
+    /// `experiment.error_profile` or `experiment.scene`.
+    pub values: Vec<SweepValue>,
+}
+
+/// A sweep value.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum SweepValue {
+    /// A number.
+    Number(f64),
+    /// A string (a file path, for example).
+    Text(String),
+}
+
+impl std::fmt::Display for SweepValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SweepValue::Number(v) => write!(f, "{v}"),
+            SweepValue::Text(t) => f.write_str(t),
+        }
+    }
+}
+
+impl SweepValue {
+    fn to_toml(&self) -> toml::Value {
+        match self {
+            SweepValue::Number(v) => toml::Value::Float(*v),
+            SweepValue::Text(t) => toml::Value::String(t.clone()),
+        }
+    }
 }
 
 fn default_seed() -> u64 {
@@ -148,7 +177,7 @@ pub struct Experiment {
     /// The sweep axes (runs are their cartesian product times the seeds).
     pub sweep: Vec<SweepAxis>,
     /// The sweep values this experiment was loaded with (empty: the base).
-    pub cell: Vec<(String, f64)>,
+    pub cell: Vec<(String, SweepValue)>,
 }
 
 impl Experiment {
@@ -159,15 +188,17 @@ impl Experiment {
     }
 
     /// Reads the experiment with one sweep cell's values applied.
-    pub fn load_cell(path: &Path, cell: &[(String, f64)]) -> Result<Self> {
-        let mut by_file: [Vec<(String, f64)>; 3] = Default::default();
+    pub fn load_cell(path: &Path, cell: &[(String, SweepValue)]) -> Result<Self> {
+        let mut by_file: [Vec<(String, toml::Value)>; 3] = Default::default();
         let mut pose_scale = None;
         for (field, value) in cell {
-            if !value.is_finite() {
-                return Err(Error::input(
-                    path,
-                    format!("sweep field '{field}': value {value} is not finite"),
-                ));
+            if let SweepValue::Number(v) = value {
+                if !v.is_finite() {
+                    return Err(Error::input(
+                        path,
+                        format!("sweep field '{field}': value {v} is not finite"),
+                    ));
+                }
             }
             let target = [("experiment.", 0), ("profile.", 1), ("scene.", 2)]
                 .iter()
@@ -177,14 +208,16 @@ impl Experiment {
                         .map(|rest| (*i, rest.to_string()))
                 });
             match (field.as_str(), target) {
-                ("pose_error_scale", _) if *value >= 0.0 => pose_scale = Some(*value),
-                ("pose_error_scale", _) => {
-                    return Err(Error::input(
-                        path,
-                        format!("pose_error_scale = {value} must be >= 0"),
-                    ))
-                }
-                (_, Some((i, rest))) => by_file[i].push((rest, *value)),
+                ("pose_error_scale", _) => match value {
+                    SweepValue::Number(v) if *v >= 0.0 => pose_scale = Some(*v),
+                    _ => {
+                        return Err(Error::input(
+                            path,
+                            format!("pose_error_scale = {value} must be a number >= 0"),
+                        ))
+                    }
+                },
+                (_, Some((i, rest))) => by_file[i].push((rest, value.to_toml())),
                 _ => {
                     return Err(Error::input(
                         path,
@@ -301,14 +334,14 @@ impl Experiment {
 
     /// The sweep cells: the cartesian product of the axes' values, first axis
     /// outermost (one empty cell without a sweep).
-    pub fn cells(&self) -> Vec<Vec<(String, f64)>> {
+    pub fn cells(&self) -> Vec<Vec<(String, SweepValue)>> {
         self.sweep.iter().fold(vec![Vec::new()], |cells, axis| {
             cells
                 .iter()
                 .flat_map(|cell| {
                     axis.values.iter().map(move |v| {
                         let mut c = cell.clone();
-                        c.push((axis.field.clone(), *v));
+                        c.push((axis.field.clone(), v.clone()));
                         c
                     })
                 })
@@ -317,7 +350,7 @@ impl Experiment {
     }
 
     /// A cell's label in files: `field=value;field=value` (empty for the base).
-    pub fn cell_label(cell: &[(String, f64)]) -> String {
+    pub fn cell_label(cell: &[(String, SweepValue)]) -> String {
         cell.iter()
             .map(|(f, v)| format!("{f}={v}"))
             .collect::<Vec<_>>()
@@ -414,5 +447,58 @@ impl Experiment {
             )));
         }
         Ok(viewpoint)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sweep_cells_and_overrides() {
+        let path = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/experiments/consistency.toml"
+        ));
+        let experiment = Experiment::load(path).unwrap();
+        let cells = experiment.cells();
+        assert_eq!(cells.len(), 3);
+        let stressed = Experiment::load_cell(path, &cells[2]).unwrap();
+        assert_eq!(stressed.profile.name, "stressed");
+        assert_eq!(
+            Experiment::cell_label(&cells[0]),
+            "experiment.error_profile=profiles/industrial.toml"
+        );
+        let number = [(
+            "experiment.sensor.max_range".to_string(),
+            SweepValue::Number(1.5),
+        )];
+        assert_eq!(
+            Experiment::load_cell(path, &number)
+                .unwrap()
+                .scanner
+                .max_range,
+            1.5
+        );
+        let wrong = [(
+            "experiment.sensor.max_range".to_string(),
+            SweepValue::Text("far".into()),
+        )];
+        let msg = Experiment::load_cell(path, &wrong)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            msg.contains("holds float") && msg.contains("string"),
+            "{msg}"
+        );
+        let scale = [("pose_error_scale".to_string(), SweepValue::Number(2.0))];
+        let scaled = Experiment::load_cell(path, &scale).unwrap();
+        assert!(
+            (scaled.profile.world_from_scene[(0, 0)]
+                - 4.0 * experiment.profile.world_from_scene[(0, 0)])
+                .abs()
+                < 1e-18
+        );
     }
 }

@@ -8,7 +8,7 @@ pub mod runner;
 mod scan_files;
 mod simulate;
 
-pub use config::{Experiment, Viewpoint};
+pub use config::{Experiment, SweepAxis, SweepValue, Viewpoint};
 pub use scan_files::{
     chain_file, default_scan_dir, read_ply, write_atomically, write_ply, write_scans,
 };

@@ -4,6 +4,7 @@
 
 use super::model::Method;
 use super::runner::SummaryRow;
+use super::{Experiment, SweepValue};
 use crate::error::{Error, Result};
 use crate::eval::scores::UNKNOWN_BAND;
 use crate::geometry::Point3;
@@ -26,11 +27,12 @@ fn mean<'a>(
 }
 
 /// `scores.svg`: F1, false-free rate, Brier and ANEES against the first sweep
-/// axis, one line per method (and value of the other axes), 95% intervals.
+/// axis, one line per method (and value of the other axes), 95% intervals;
+/// and `score_<metric>.svg` beside it for every metric of `summary.csv`.
 pub fn plot_scores(
     path: &Path,
     summary: &[SummaryRow],
-    cells: &[Vec<(String, f64)>],
+    cells: &[Vec<(String, SweepValue)>],
     methods: &[Method],
 ) -> Result<()> {
     let Some(axis) = cells
@@ -40,11 +42,28 @@ pub fn plot_scores(
     else {
         return Ok(());
     };
-    let label = |cell: &[(String, f64)]| {
-        cell.iter()
-            .map(|(f, v)| format!("{f}={v}"))
-            .collect::<Vec<_>>()
-            .join(";")
+    let label = |cell: &[(String, SweepValue)]| Experiment::cell_label(cell);
+    // A string axis (profiles, scenes) is plotted at the index of its value.
+    let texts: Vec<String> = cells
+        .iter()
+        .filter_map(|c| match &c[0].1 {
+            SweepValue::Text(t) => Some(t.clone()),
+            SweepValue::Number(_) => None,
+        })
+        .fold(Vec::new(), |mut seen, t| {
+            if !seen.contains(&t) {
+                seen.push(t);
+            }
+            seen
+        });
+    let x_of = |v: &SweepValue| match v {
+        SweepValue::Number(x) => *x,
+        SweepValue::Text(t) => texts.iter().position(|s| s == t).unwrap_or(0) as f64,
+    };
+    let axis = if texts.is_empty() {
+        axis
+    } else {
+        format!("{axis} (index: {})", texts.join(", "))
     };
     let series_for = |metric: &str| -> Vec<Series> {
         let mut out: Vec<Series> = Vec::new();
@@ -62,7 +81,7 @@ pub fn plot_scores(
                 if !row.mean.is_finite() {
                     continue;
                 }
-                let x = cell[0].1;
+                let x = x_of(&cell[0].1);
                 let index = match out.iter().position(|s| s.name == name) {
                     Some(i) => i,
                     None => {
@@ -103,7 +122,24 @@ pub fn plot_scores(
             series,
         })
         .collect();
-    panels(path, &list)
+    panels(path, &list)?;
+    // And every metric of summary.csv on its own chart, beside the overview.
+    let dir = path.parent().unwrap_or(Path::new("."));
+    for metric in super::runner::SUMMARY_METRICS {
+        let series = series_for(metric);
+        panels(
+            &dir.join(format!("score_{metric}.svg")),
+            &[Panel {
+                title: metric,
+                x_label: &axis,
+                y_label: metric,
+                log_x: false,
+                log_y: metric == "anees",
+                series: &series,
+            }],
+        )?;
+    }
+    Ok(())
 }
 
 /// `coverage.svg`: the share of true points inside the 1, 2, 3 sigma

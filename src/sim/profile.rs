@@ -70,7 +70,7 @@ impl ErrorProfile {
     }
 
     /// Reads a profile with numeric fields overridden (dotted paths).
-    pub fn load_with(path: &Path, overrides: &[(String, f64)]) -> Result<Self> {
+    pub fn load_with(path: &Path, overrides: &[(String, toml::Value)]) -> Result<Self> {
         let file: ProfileFile = read_toml_with(path, overrides)?;
         let bad = |msg: String| Error::input(path, msg);
         file.range.check().map_err(bad)?;

@@ -280,7 +280,7 @@ impl Scene {
 
     /// Reads a scene with numeric fields overridden (dotted paths, e.g.
     /// `object.2.radius`).
-    pub fn load_with(path: &Path, overrides: &[(String, f64)]) -> Result<Self> {
+    pub fn load_with(path: &Path, overrides: &[(String, toml::Value)]) -> Result<Self> {
         let file: SceneFile = read_toml_with(path, overrides)?;
         let bad = |msg: String| Error::input(path, msg);
         let ws = &file.workspace;
