@@ -54,6 +54,11 @@ pub struct RunRow {
     pub roc_auc: f64,
     /// ANEES of the propagated points against the true surface points (NaN for ray_update).
     pub anees: f64,
+    /// Two-sided 95% χ² band of ANEES for this many independent points; the
+    /// points of a viewpoint share its pose error, so read it as a reference.
+    pub anees_low: f64,
+    /// Upper end of that band.
+    pub anees_high: f64,
     /// Share of true points inside the 1, 2, 3 sigma ellipsoids.
     pub coverage_1sigma: f64,
     /// See `coverage_1sigma`.
@@ -152,6 +157,8 @@ pub fn run_seed(
             log_loss: s.log_loss,
             roc_auc: s.roc_auc,
             anees: c(|r| r.anees),
+            anees_low: c(|r| r.bounds.0),
+            anees_high: c(|r| r.bounds.1),
             coverage_1sigma: c(|r| r.coverage[0]),
             coverage_2sigma: c(|r| r.coverage[1]),
             coverage_3sigma: c(|r| r.coverage[2]),
