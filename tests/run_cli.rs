@@ -23,6 +23,18 @@ fn run(out: &std::path::Path, extra: &[&str]) {
     );
 }
 
+/// The quickstart experiment with absolute paths, to edit and write elsewhere.
+fn portable_quickstart() -> String {
+    let root = env!("CARGO_MANIFEST_DIR");
+    std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
+        .unwrap()
+        .replace("../", &format!("{root}/"))
+        .replace(
+            "profiles/collaborative.toml",
+            &format!("{root}/experiments/profiles/collaborative.toml"),
+        )
+}
+
 #[test]
 fn results_do_not_depend_on_threads_and_survive_interruption() {
     let dir = tempfile::tempdir().unwrap();
@@ -104,18 +116,8 @@ fn quickstart_shows_the_paper_claims() {
 #[test]
 fn bad_method_lists_exit_2() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string("experiments/quickstart.toml").unwrap();
     let path = dir.path().join("x.toml");
-    let text = text
-        .replace("\"blind\", \"unscented\"", "\"blind\", \"magic\"")
-        .replace("../", &format!("{}/", env!("CARGO_MANIFEST_DIR")));
-    let text = text.replace(
-        "profiles/collaborative.toml",
-        &format!(
-            "{}/experiments/profiles/collaborative.toml",
-            env!("CARGO_MANIFEST_DIR")
-        ),
-    );
+    let text = portable_quickstart().replace("\"blind\", \"unscented\"", "\"blind\", \"magic\"");
     std::fs::write(&path, text).unwrap();
     let out = sigmap(&[
         "run",
@@ -181,14 +183,7 @@ fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
 #[test]
 fn sweeps_run_every_cell_and_reject_unknown_fields() {
     let dir = tempfile::tempdir().unwrap();
-    let root = env!("CARGO_MANIFEST_DIR");
-    let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
-        .unwrap()
-        .replace("../", &format!("{root}/"))
-        .replace(
-            "profiles/collaborative.toml",
-            &format!("{root}/experiments/profiles/collaborative.toml"),
-        )
+    let text = portable_quickstart()
         .replace("seeds = [1, 2, 3]", "seeds = [4]")
         .replacen(
             "[robot]",
