@@ -1,6 +1,7 @@
 //! The command line: argument parsing, progress, and exit codes
 //! (0 ok, 1 a failed check, 2 bad input or usage).
 
+mod cluster;
 mod ground_truth;
 mod map;
 mod opdf;
@@ -63,10 +64,44 @@ enum Command {
     /// version, and that no run is missing; the merged runs.csv and
     /// summary.csv are byte-identical to a one-machine run.
     Merge(MergeArgs),
+    /// Submit an experiment to SLURM as a job array of shards plus a merge
+    ///
+    /// Writes the sbatch scripts into the results folder (readable, to adapt),
+    /// submits N tasks where task k runs `sigmap run ... --shard k/N`, and a
+    /// merge job that waits for them (afterok). --resume submits only the
+    /// shards that still miss runs.
+    Submit(SubmitArgs),
+    /// Say which runs of a submitted experiment are done, missing or failed
+    Status(StatusArgs),
     /// Compare a summary.csv with a baseline; exit 1 on a regression
     ///
     /// Prints a table of the metrics whose mean drifted past its tolerance.
     Regress(RegressArgs),
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct SubmitArgs {
+    /// The experiment file (TOML).
+    experiment: PathBuf,
+    /// Number of array tasks (shards).
+    #[arg(long, default_value_t = 1)]
+    tasks: usize,
+    /// Results folder on the shared filesystem [default: results/<experiment>].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// An extra argument for sbatch (partition, time, memory...), repeatable:
+    /// --sbatch-arg=--partition=short --sbatch-arg=--time=01:00:00.
+    #[arg(long, allow_hyphen_values = true)]
+    sbatch_arg: Vec<String>,
+    /// Submit only the shards with missing runs (and the merge).
+    #[arg(long)]
+    resume: bool,
+}
+
+#[derive(Args, Debug)]
+pub(crate) struct StatusArgs {
+    /// The results folder of a submission.
+    dir: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -281,6 +316,8 @@ pub fn main() -> i32 {
         Command::GroundTruth(args) => ground_truth::run(args),
         Command::Regress(args) => regress::run(args),
         Command::Merge(args) => run::merge(args),
+        Command::Submit(args) => cluster::submit(args),
+        Command::Status(args) => cluster::status(args),
     };
     match result {
         Ok(()) => 0,

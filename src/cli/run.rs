@@ -51,13 +51,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     let mut timings: Vec<TimingRow> = read_rows(&timings_path)?;
     let done: BTreeSet<(String, u64)> = rows.iter().map(|r| (r.cell.clone(), r.seed)).collect();
     let (shard, shards) = args.shard.unwrap_or((1, 1));
-    // A shard takes every n-th run of the full, fixed list of (cell, seed).
-    let mine: Vec<(usize, u64)> = (0..cells.len())
-        .flat_map(|c| experiment.seeds.iter().map(move |&s| (c, s)))
-        .enumerate()
-        .filter(|(k, _)| k % shards == shard - 1)
-        .map(|(_, run)| run)
-        .collect();
+    let mine = shard_runs(cells.len(), &experiment.seeds, shard, shards);
     let pending: Vec<(usize, u64)> = mine
         .iter()
         .copied()
@@ -153,6 +147,31 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The runs of shard `shard` of `shards` (1-based): every n-th (cell index,
+/// seed) of the fixed list, cells outer. The same experiment always gives the
+/// same shards.
+pub(crate) fn shard_runs(
+    cells: usize,
+    seeds: &[u64],
+    shard: usize,
+    shards: usize,
+) -> Vec<(usize, u64)> {
+    (0..cells)
+        .flat_map(|c| seeds.iter().map(move |&s| (c, s)))
+        .enumerate()
+        .filter(|(k, _)| k % shards == shard - 1)
+        .map(|(_, run)| run)
+        .collect()
+}
+
+/// The finished runs (cell label, seed) recorded in a run folder: its
+/// runs.csv and the journal of an interrupted run.
+pub(crate) fn finished_runs(dir: &Path) -> Result<BTreeSet<(String, u64)>> {
+    let mut rows: Vec<RunRow> = read_rows(&dir.join("runs.csv"))?;
+    rows.extend(read_journal(&dir.join("runs.journal.csv"))?);
+    Ok(rows.into_iter().map(|r| (r.cell, r.seed)).collect())
 }
 
 /// Sorts the rows into the one order every machine agrees on (cell, seed,
@@ -289,8 +308,33 @@ pub(crate) fn merge(args: MergeArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from("results").join(&experiment.name));
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    finalize(&out, &labels, &experiment.methods, rows, timings)?;
+    let summary = finalize(&out, &labels, &experiment.methods, rows, timings)?;
     write_manifest(&out, &experiment, 1, 1)?;
+    plots::plot_scores(
+        &out.join("scores.svg"),
+        &summary,
+        &experiment.cells(),
+        &experiment.methods,
+    )?;
+    plots::plot_coverage(
+        &out.join("coverage.svg"),
+        &summary,
+        &labels[0],
+        &experiment.methods,
+    )?;
+    // The first run's maps and slice live in the shard that ran it.
+    for dir in &args.shards {
+        for entry in std::fs::read_dir(dir)
+            .map_err(|e| Error::io(dir, e))?
+            .flatten()
+        {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if name == "slice.svg" || (name.starts_with("map_") && name.ends_with(".bt")) {
+                std::fs::copy(entry.path(), out.join(&name))
+                    .map_err(|e| Error::io(entry.path(), e))?;
+            }
+        }
+    }
     eprintln!(
         "merged {} shards into {}/runs.csv, summary.csv and timings.csv",
         args.shards.len(),
