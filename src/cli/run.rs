@@ -125,20 +125,8 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         timings.extend(t);
     }
     let runs = rows.len();
-    let summary = finalize(&out, &labels, &experiment.methods, rows, timings)?;
+    let summary = finalize(&out, &experiment, &labels, rows, timings)?;
     std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
-    plots::plot_scores(
-        &out.join("scores.svg"),
-        &summary,
-        &experiment.cells(),
-        &experiment.methods,
-    )?;
-    plots::plot_coverage(
-        &out.join("coverage.svg"),
-        &summary,
-        &labels[0],
-        &experiment.methods,
-    )?;
     if !args.run.quiet {
         print_headline(&experiment, &summary, runs);
         eprintln!(
@@ -175,15 +163,16 @@ pub(crate) fn finished_runs(dir: &Path) -> Result<BTreeSet<(String, u64)>> {
 }
 
 /// Sorts the rows into the one order every machine agrees on (cell, seed,
-/// method as the experiment lists them), writes runs.csv, timings.csv and
-/// summary.csv, and returns the summary.
+/// method as the experiment lists them), writes runs.csv, timings.csv,
+/// summary.csv and the summary's charts, and returns the summary.
 fn finalize(
     out: &Path,
+    experiment: &Experiment,
     labels: &[String],
-    methods: &[Method],
     mut rows: Vec<RunRow>,
     mut timings: Vec<TimingRow>,
 ) -> Result<Vec<SummaryRow>> {
+    let methods: &[Method] = &experiment.methods;
     let method_order = |m: &str| {
         methods
             .iter()
@@ -200,6 +189,13 @@ fn finalize(
     write_rows(&out.join("timings.csv"), &timings)?;
     let summary = summarise(&rows, labels, methods);
     write_rows(&out.join("summary.csv"), &summary)?;
+    plots::plot_scores(
+        &out.join("scores.svg"),
+        &summary,
+        &experiment.cells(),
+        methods,
+    )?;
+    plots::plot_coverage(&out.join("coverage.svg"), &summary, &labels[0], methods)?;
     Ok(summary)
 }
 
@@ -308,20 +304,8 @@ pub(crate) fn merge(args: MergeArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from("results").join(&experiment.name));
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    let summary = finalize(&out, &labels, &experiment.methods, rows, timings)?;
+    finalize(&out, &experiment, &labels, rows, timings)?;
     write_manifest(&out, &experiment, 1, 1)?;
-    plots::plot_scores(
-        &out.join("scores.svg"),
-        &summary,
-        &experiment.cells(),
-        &experiment.methods,
-    )?;
-    plots::plot_coverage(
-        &out.join("coverage.svg"),
-        &summary,
-        &labels[0],
-        &experiment.methods,
-    )?;
     // The first run's maps and slice live in the shard that ran it.
     for dir in &args.shards {
         for entry in std::fs::read_dir(dir)
