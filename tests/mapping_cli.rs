@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::sigmap;
+use common::{sigmap, sigmap_ok};
 use sigmap::geometry::Point3;
 use sigmap::mapping::octomap_io::read_octree;
 use sigmap::mapping::Clamp;
@@ -47,7 +47,7 @@ fn maps_are_written_and_carry_free_space_and_surfaces() {
 fn five_millimetre_maps() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("fine.bt");
-    let run = sigmap(&[
+    sigmap_ok(&[
         "map",
         "experiments/quickstart.toml",
         "--resolution",
@@ -56,11 +56,6 @@ fn five_millimetre_maps() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
     let tree = read_octree(&out, Clamp::OCTOMAP).unwrap();
     assert_eq!(tree.resolution(), 0.005);
     let at = |z| tree.value_at(&Point3::new(0.1, 0.1, z)).unwrap_or(f32::MIN);
@@ -88,12 +83,7 @@ fn bad_map_requests_exit_2() {
 #[test]
 fn opdf_figures_are_drawn() {
     let dir = tempfile::tempdir().unwrap();
-    let out = sigmap(&["opdf", "--out", dir.path().to_str().unwrap()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    sigmap_ok(&["opdf", "--out", dir.path().to_str().unwrap()]);
     for f in ["opdf_fig1.svg", "opdf_fig6.svg"] {
         assert!(std::fs::read_to_string(dir.path().join(f))
             .unwrap()
@@ -113,7 +103,7 @@ fn opdf_figures_are_drawn() {
 fn ground_truth_files() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("truth.bt");
-    let run = sigmap(&[
+    sigmap_ok(&[
         "ground-truth",
         "scenes/shelf.toml",
         "--resolution",
@@ -121,11 +111,6 @@ fn ground_truth_files() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
     let truth = read_octree(&out, Clamp::OCTOMAP).unwrap();
     // A thin board is occupied; the middle of a compartment is free.
     assert_eq!(

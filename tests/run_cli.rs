@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::sigmap;
+use common::{sigmap, sigmap_ok};
 
 fn run(out: &std::path::Path, extra: &[&str]) {
     let mut args = vec![
@@ -15,12 +15,7 @@ fn run(out: &std::path::Path, extra: &[&str]) {
         "-q",
     ];
     args.extend_from_slice(extra);
-    let result = sigmap(&args);
-    assert!(
-        result.status.success(),
-        "{}",
-        String::from_utf8_lossy(&result.stderr)
-    );
+    sigmap_ok(&args);
 }
 
 /// The quickstart experiment with absolute paths, to edit and write elsewhere.

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::sigmap;
+use common::sigmap_ok;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -57,16 +57,6 @@ fn wait_for(ids: &[String]) {
     }
 }
 
-fn run_ok(args: &[&str]) -> String {
-    let out = sigmap(args);
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
 #[test]
 fn quickstart_on_slurm_matches_a_local_run_and_resumes() {
     if !slurm_present() {
@@ -74,7 +64,7 @@ fn quickstart_on_slurm_matches_a_local_run_and_resumes() {
     }
     let dir = tempfile::tempdir().unwrap();
     let local = dir.path().join("local");
-    run_ok(&[
+    sigmap_ok(&[
         "run",
         "experiments/quickstart.toml",
         "--out",
@@ -87,7 +77,7 @@ fn quickstart_on_slurm_matches_a_local_run_and_resumes() {
 
     // A whole sweep: 4 tasks and the merge.
     let cluster = dir.path().join("cluster");
-    let stdout = run_ok(&[
+    let stdout = sigmap_ok(&[
         "submit",
         "experiments/quickstart.toml",
         "--tasks",
@@ -102,13 +92,13 @@ fn quickstart_on_slurm_matches_a_local_run_and_resumes() {
         assert_eq!(read(cluster.join(file)), read(local.join(file)), "{file}");
     }
     assert!(cluster.join("sigmap_array.sbatch").exists() && cluster.join("coverage.svg").exists());
-    let status = run_ok(&["status", cluster.to_str().unwrap()]);
+    let status = sigmap_ok(&["status", cluster.to_str().unwrap()]);
     assert!(status.contains("3 of 3 runs done; merged"), "{status}");
 
     // Task 2 cancelled before it runs: the merge never starts, status shows
     // the hole, --resume submits shard 2 only and the merge.
     let broken = dir.path().join("broken");
-    let stdout = run_ok(&[
+    let stdout = sigmap_ok(&[
         "submit",
         "experiments/quickstart.toml",
         "--tasks",
@@ -144,13 +134,13 @@ fn quickstart_on_slurm_matches_a_local_run_and_resumes() {
     }
     let _ = Command::new("scancel").arg(merge).status();
     wait_for(&ids);
-    let status = run_ok(&["status", broken.to_str().unwrap()]);
+    let status = sigmap_ok(&["status", broken.to_str().unwrap()]);
     assert!(
         status.contains("2 of 3 runs done") && status.contains("missing: seed 2"),
         "{status}"
     );
     assert!(!broken.join("summary.csv").exists());
-    let stdout = run_ok(&[
+    let stdout = sigmap_ok(&[
         "submit",
         "experiments/quickstart.toml",
         "--out",

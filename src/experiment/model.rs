@@ -69,6 +69,17 @@ impl FromStr for Method {
     }
 }
 
+/// The propagator of an OPDF method for one viewpoint's chain; `None` for
+/// the ray update, which propagates nothing.
+pub fn propagator(method: Method, chain: &UncertainChain) -> Option<Box<dyn Propagator>> {
+    match method {
+        Method::Blind => Some(Box::new(BlindPropagator::new(chain))),
+        Method::Jacobian => Some(Box::new(JacobianPropagator::new(chain))),
+        Method::Unscented => Some(Box::new(UnscentedPropagator::new(chain, SigmaSet::Paper))),
+        Method::RayUpdate => None,
+    }
+}
+
 /// The chain of a scan as the modeller believes it.
 pub fn scan_chain(scan: &Scan) -> UncertainChain {
     UncertainChain::paper(
@@ -155,15 +166,10 @@ pub fn build_map(
     let mut updater = RayUpdater::default();
     for scan in &run.scans {
         let chain = scan_chain(scan);
-        let propagator: Box<dyn Propagator> = match method {
-            Method::Blind => Box::new(BlindPropagator::new(&chain)),
-            Method::Jacobian => Box::new(JacobianPropagator::new(&chain)),
-            Method::Unscented => Box::new(UnscentedPropagator::new(&chain, SigmaSet::Paper)),
-            Method::RayUpdate => {
-                let (origin, hits, misses) = ray_inputs(experiment, scan);
-                updater.insert_scan(&mut tree, &origin, &hits, &misses, max_range);
-                continue;
-            }
+        let Some(propagator) = propagator(method, &chain) else {
+            let (origin, hits, misses) = ray_inputs(experiment, scan);
+            updater.insert_scan(&mut tree, &origin, &hits, &misses, max_range);
+            continue;
         };
         let origin = propagator.origin();
         let beams = beam_ends(experiment, scan, propagator.as_ref());

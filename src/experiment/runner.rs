@@ -1,7 +1,7 @@
 //! `sigmap run`: every seed of an experiment, every method on each seed's
 //! scans (common random numbers), scored against the ground truth.
 
-use super::model::{beam_ends_with_truth, build_map, scan_chain, Method};
+use super::model::{beam_ends_with_truth, build_map, propagator, scan_chain, Method};
 use super::{simulate, Experiment};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::voxelise;
@@ -9,9 +9,6 @@ use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
 use crate::mapping::Octree;
 use crate::uncertainty::consistency::ConsistencyReport;
-use crate::uncertainty::{
-    BlindPropagator, JacobianPropagator, Propagator, SigmaSet, UnscentedPropagator,
-};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -91,18 +88,6 @@ pub struct TimingRow {
 /// The truth every run of the experiment is scored against.
 pub fn ground_truth(experiment: &Experiment) -> Octree {
     voxelise(&experiment.scene, experiment.resolution)
-}
-
-fn propagator(
-    method: Method,
-    chain: &crate::uncertainty::UncertainChain,
-) -> Option<Box<dyn Propagator>> {
-    match method {
-        Method::Blind => Some(Box::new(BlindPropagator::new(chain))),
-        Method::Jacobian => Some(Box::new(JacobianPropagator::new(chain))),
-        Method::Unscented => Some(Box::new(UnscentedPropagator::new(chain, SigmaSet::Paper))),
-        Method::RayUpdate => None,
-    }
 }
 
 /// Runs one seed: simulate, then build, score and check each method.

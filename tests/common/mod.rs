@@ -17,6 +17,19 @@ pub fn sigmap(args: &[&str]) -> Output {
         .expect("run sigmap")
 }
 
+/// Runs `sigmap`, checks it succeeded (showing its stderr if not), and
+/// returns its stdout.
+#[allow(dead_code)] // not every test file uses it
+pub fn sigmap_ok(args: &[&str]) -> String {
+    let out = sigmap(args);
+    assert!(
+        out.status.success(),
+        "sigmap {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 /// Simulates the quickstart into `dir` and checks it succeeded.
 #[allow(dead_code)] // not every test file simulates
 pub fn simulate_quickstart(dir: &std::path::Path, extra: &[&str]) {
