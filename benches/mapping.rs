@@ -8,6 +8,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use sigmap::experiment::model::{build_map, Method};
 use sigmap::experiment::{simulate, Experiment};
+use sigmap::geometry::Vector3;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -33,20 +34,33 @@ fn bench(c: &mut Criterion) {
         .warm_up_time(Duration::from_millis(500));
     for method in [Method::RayUpdate, Method::Unscented] {
         group.bench_function(method.as_str(), |b| {
-            b.iter(|| pool.install(|| black_box(build_map(&experiment, &run, method, RESOLUTION))))
+            b.iter(|| {
+                pool.install(|| {
+                    black_box(build_map(
+                        &experiment,
+                        &run,
+                        method,
+                        RESOLUTION,
+                        &Vector3::zeros(),
+                    ))
+                })
+            })
         });
     }
     group.finish();
 
-    let seconds = |method| {
-        let start = Instant::now();
-        let mut reps = 0;
-        while reps < 3 || start.elapsed() < Duration::from_secs(1) {
-            black_box(pool.install(|| build_map(&experiment, &run, method, RESOLUTION)));
-            reps += 1;
-        }
-        start.elapsed().as_secs_f64() / reps as f64
-    };
+    let seconds =
+        |method| {
+            let start = Instant::now();
+            let mut reps = 0;
+            while reps < 3 || start.elapsed() < Duration::from_secs(1) {
+                black_box(pool.install(|| {
+                    build_map(&experiment, &run, method, RESOLUTION, &Vector3::zeros())
+                }));
+                reps += 1;
+            }
+            start.elapsed().as_secs_f64() / reps as f64
+        };
     let baseline = seconds(Method::RayUpdate);
     println!("\ninsertion of {beams} beams at {RESOLUTION} m, one core (ratio: beams/s against the ray update):");
     for method in Method::ALL {
@@ -55,7 +69,7 @@ fn bench(c: &mut Criterion) {
         } else {
             seconds(method)
         };
-        let stats = build_map(&experiment, &run, method, RESOLUTION).stats();
+        let stats = build_map(&experiment, &run, method, RESOLUTION, &Vector3::zeros()).stats();
         println!(
             "  {:<11} {:6.3} M beams/s  {:5.2}x   {:5.1} bytes/leaf (OctoMap's layout: {:5.1})",
             method.as_str(),

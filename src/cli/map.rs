@@ -39,7 +39,13 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
     }
     let start = Instant::now();
     let tree = with_threads(args.run.threads, || {
-        build_map(&experiment, &run, args.method, resolution)
+        build_map(
+            &experiment,
+            &run,
+            args.method,
+            resolution,
+            &crate::geometry::Vector3::zeros(),
+        )
     })?;
     let seconds = start.elapsed().as_secs_f64();
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {

@@ -58,9 +58,6 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         .filter(|(c, s)| !done.contains(&(labels[*c].clone(), *s)))
         .collect();
     write_manifest(&out, &experiment, shard, shards)?;
-    let truths: Vec<_> = with_threads(args.run.threads, || {
-        cells.par_iter().map(ground_truth).collect()
-    })?;
     let bar = progress_bar(pending.len(), "runs", args.run.quiet);
     let journal = Mutex::new(
         std::fs::OpenOptions::new()
@@ -74,13 +71,19 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         pending
             .par_iter()
             .map(|&(c, seed)| -> Result<(Vec<RunRow>, Vec<TimingRow>)> {
-                let (new_rows, new_timings, maps) = run_seed(&cells[c], &truths[c], seed)?;
+                let truth = ground_truth(&cells[c], seed);
+                let (new_rows, new_timings, maps) = run_seed(&cells[c], &truth, seed)?;
                 if c == 0 && seed == first_seed {
                     for (method, map) in experiment.methods.iter().zip(&maps) {
                         let path = out.join(format!("map_{method}.bt"));
                         write_octree(&path, map, Clamp::OCTOMAP)?;
                     }
-                    let truth = &truths[0];
+                    let offset = cells[0].map_offset(seed);
+                    let workspace = &cells[0].scene.workspace;
+                    let workspace = crate::sim::scene::Bounds {
+                        min: workspace.min + offset,
+                        max: workspace.max + offset,
+                    };
                     let pairs: Vec<_> = experiment
                         .methods
                         .iter()
@@ -89,10 +92,10 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
                         .collect();
                     plots::plot_slice(
                         &out.join("slice.svg"),
-                        truth,
+                        &truth,
                         &pairs,
-                        &cells[0].scene.workspace,
-                        plots::slice_height(truth),
+                        &workspace,
+                        plots::slice_height(&truth),
                     )?;
                 }
                 // One write per finished run, so an interruption loses only unfinished runs.

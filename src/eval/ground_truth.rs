@@ -1,10 +1,10 @@
 //! Ground-truth occupancy of a scene (MATH.md §7.1).
 //!
-//! Rule: a cell of the finest level is **occupied** when its closed box meets
-//! a solid (its surface or its interior) and **free** otherwise; cells whose
-//! centre lies outside the scene's workspace are not part of the truth
-//! (unknown). A cell that only touches a face (a set of measure zero) may go
-//! either way with rounding. Occupied cells hold OctoMap's clamp maximum, free ones its
+//! Rule: a cell of the finest level is **occupied** when its box meets a
+//! solid in more than a face (the box shrunk by [`TOUCH`] on every side
+//! meets its surface or interior) and **free** otherwise; cells whose centre
+//! lies outside the scene's workspace are not part of the truth (unknown). A
+//! cell that only touches a face is therefore free, whatever the rounding. Occupied cells hold OctoMap's clamp maximum, free ones its
 //! minimum, so the truth is itself an OctoMap tree.
 //!
 //! The voxelisation recurses over octree cells: a cell inside the workspace
@@ -12,15 +12,25 @@
 //! only cells near objects are split down to the finest level, where the
 //! exact box–solid test decides.
 
-use crate::geometry::Point3;
+use crate::geometry::{Point3, Vector3};
 use crate::mapping::octree::{Clamp, Key, DEPTH};
 use crate::mapping::Octree;
 use crate::sim::scene::{Bounds, Scene};
 
+/// How far (m) a solid must reach into a cell to occupy it: faces that only
+/// touch a cell (or lie within 0.1 µm of its side) leave it free.
+pub const TOUCH: f64 = 1e-7;
+
 /// The true occupancy of `scene`'s workspace at `resolution`.
 pub fn voxelise(scene: &Scene, resolution: f64) -> Octree {
+    voxelise_at(scene, resolution, &Vector3::zeros())
+}
+
+/// The true occupancy in the map frame `map = scene + offset` (the grid's
+/// sub-voxel offset of `Experiment::map_offset`).
+pub fn voxelise_at(scene: &Scene, resolution: f64, offset: &Vector3) -> Octree {
     let mut tree = Octree::new(resolution);
-    recurse(scene, &mut tree, Key([0, 0, 0]), 0);
+    recurse(scene, &mut tree, Key([0, 0, 0]), 0, offset);
     tree
 }
 
@@ -38,8 +48,9 @@ pub fn cell_counts(tree: &Octree) -> (u64, u64) {
     (occupied, free)
 }
 
-fn cell_bounds(tree: &Octree, key: &Key, depth: u8) -> Bounds {
-    let c = tree.center(key, depth);
+/// The cell's box in scene coordinates.
+fn cell_bounds(tree: &Octree, key: &Key, depth: u8, offset: &Vector3) -> Bounds {
+    let c = tree.center(key, depth) - offset;
     let h = tree.node_size(depth) / 2.0;
     Bounds {
         min: Point3::new(c.x - h, c.y - h, c.z - h),
@@ -47,21 +58,23 @@ fn cell_bounds(tree: &Octree, key: &Key, depth: u8) -> Bounds {
     }
 }
 
-fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8) {
-    let cell = cell_bounds(tree, &key, depth);
+fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8, offset: &Vector3) {
+    let cell = cell_bounds(tree, &key, depth, offset);
     let ws = &scene.workspace;
     if !cell.intersects(ws) {
         return;
     }
     if depth == DEPTH {
-        let centre = tree.center(&key, depth);
+        let centre = tree.center(&key, depth) - offset;
         if !ws.contains(&centre) {
             return;
         }
+        let touch = Vector3::repeat(TOUCH);
+        let (min, max) = (cell.min + touch, cell.max - touch);
         let occupied = scene
             .objects_near(&cell.min, &cell.max)
             .into_iter()
-            .any(|o| scene.box_meets_object(o, &cell.min, &cell.max));
+            .any(|o| scene.box_meets_object(o, &min, &max));
         let clamp = Clamp::OCTOMAP;
         tree.update(&key, if occupied { clamp.max } else { clamp.min }, clamp);
         return;
@@ -77,7 +90,7 @@ fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8) {
         for (axis, kk) in k.0.iter_mut().enumerate() {
             *kk |= ((child >> axis) & 1) << bit;
         }
-        recurse(scene, tree, k, depth + 1);
+        recurse(scene, tree, k, depth + 1, offset);
     }
 }
 

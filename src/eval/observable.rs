@@ -2,18 +2,20 @@
 //! have seen, so that scores separate errors from cells nobody looked at.
 
 use crate::experiment::{Experiment, SimulatedRun};
-use crate::geometry::Point3;
+use crate::geometry::{Point3, Vector3};
 use crate::mapping::octree::Octree;
 use crate::mapping::ray_update::ray_keys;
 use rustc_hash::FxHashSet;
 
 /// Morton codes of the cells (at `resolution`) that a true beam traversed,
 /// or whose surface it hit, from the true sensor origin: up to the true hit,
-/// or up to the maximum range for beams that reached nothing.
+/// or up to the maximum range for beams that reached nothing; in the map
+/// frame `map = scene + offset`.
 pub fn observable_cells(
     experiment: &Experiment,
     run: &SimulatedRun,
     resolution: f64,
+    offset: &Vector3,
 ) -> FxHashSet<u64> {
     let grid = Octree::new(resolution);
     let mut cells = FxHashSet::default();
@@ -21,12 +23,12 @@ pub fn observable_cells(
     let max_range = experiment.scanner.max_range;
     for scan in &run.scans {
         let pose = &scan.truth.scene_from_camera;
-        let origin = Point3::from(pose.translation.vector);
+        let origin = Point3::from(pose.translation.vector + offset);
         for (beam, d) in scan.truth.beams.iter().zip(&experiment.scanner.directions) {
             let end = if beam.range.is_nan() {
                 origin + pose.rotation * d * max_range
             } else {
-                beam.point
+                beam.point + offset
             };
             ray.clear();
             ray_keys(&grid, &origin, &end, &mut ray);

@@ -8,7 +8,9 @@ use crate::sim::profile::ErrorProfile;
 use crate::sim::robot::{KinematicChain, Robot};
 use crate::sim::scene::Scene;
 use crate::sim::sensor::{Scanner, ScannerSpec};
+use crate::sim::streams::{Stream, Streams};
 use nalgebra::Unit;
+use rand::Rng;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -24,6 +26,9 @@ struct ExperimentFile {
     seed: u64,
     #[serde(default = "default_resolution")]
     resolution: f64,
+    risk: Option<f64>,
+    #[serde(default)]
+    grid_offset: bool,
     seeds: Option<Vec<u64>>,
     methods: Option<Vec<String>>,
     robot: MountSpec,
@@ -149,6 +154,12 @@ pub struct Experiment {
     pub seed: u64,
     /// The map's finest voxel edge (m): `resolution` in the file, default 0.01.
     pub resolution: f64,
+    /// Risk level ε of the cell model (docs/math.md §5.4): a beam calls a
+    /// cell free only when `P(λ > b) ≥ 1 − ε`. `risk` in the file; off when absent.
+    pub risk: Option<f64>,
+    /// Whether the scene sits at a sub-voxel offset drawn from each run's seed
+    /// (`grid_offset = true`), so that no face lies on a cell plane by design.
+    pub grid_offset: bool,
     /// The seeds of `sigmap run` (`seeds = [..]`, default `[seed]`).
     pub seeds: Vec<u64>,
     /// The modelling methods compared by `sigmap run`
@@ -280,6 +291,13 @@ impl Experiment {
                 file.resolution
             )));
         }
+        if let Some(risk) = file.risk {
+            if !(risk.is_finite() && (1e-9..=0.5).contains(&risk)) {
+                return Err(bad(format!(
+                    "risk = {risk} must be a probability between 1e-9 and 0.5 (leave it out for none)"
+                )));
+            }
+        }
         let seeds = file.seeds.clone().unwrap_or_else(|| vec![file.seed]);
         if seeds.is_empty() {
             return Err(bad("`seeds` is empty".into()));
@@ -308,6 +326,8 @@ impl Experiment {
             source: path.to_path_buf(),
             seed: file.seed,
             resolution: file.resolution,
+            risk: file.risk,
+            grid_offset: file.grid_offset,
             seeds,
             methods,
             scene,
@@ -330,6 +350,18 @@ impl Experiment {
             experiment.viewpoints.push(viewpoint);
         }
         Ok(experiment)
+    }
+
+    /// Where the map's grid sits relative to the scene for the run with
+    /// `seed`: `map = scene + offset`, each component uniform in
+    /// `[0, resolution)` from the seed's own stream when `grid_offset` is on,
+    /// zero otherwise. The same for every method of the seed.
+    pub fn map_offset(&self, seed: u64) -> Vector3 {
+        if !self.grid_offset {
+            return Vector3::zeros();
+        }
+        let mut rng = Streams::new(seed).rng(Stream::GridOffset);
+        Vector3::from_fn(|_, _| rng.random::<f64>() * self.resolution)
     }
 
     /// The sweep cells: the cartesian product of the axes' values, first axis

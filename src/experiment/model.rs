@@ -2,9 +2,9 @@
 //! modeller can do with the scans alone (the truth never enters here).
 
 use super::{Experiment, SimulatedRun};
-use crate::geometry::Point3;
+use crate::geometry::{Point3, Vector3};
+use crate::mapping::chord::CellModel;
 use crate::mapping::merge::{merge, MergeOptions};
-use crate::mapping::opdf::OpdfParams;
 use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::spherical::BeamEnd;
 use crate::mapping::viewpoint::{local_grid, Raster};
@@ -132,7 +132,7 @@ pub fn beam_ends_with_truth(
     experiment: &Experiment,
     scan: &Scan,
     propagator: &dyn Propagator,
-) -> Vec<(crate::geometry::Vector3, crate::geometry::Matrix3)> {
+) -> Vec<(Vector3, crate::geometry::Matrix3)> {
     let range = &experiment.profile.range;
     scan.measurements
         .iter()
@@ -149,12 +149,14 @@ pub fn beam_ends_with_truth(
         .collect()
 }
 
-/// Builds the map of a run at `resolution` with `method`.
+/// Builds the map of a run at `resolution` with `method`, in the map frame
+/// `map = scene + offset` (zero: the scene frame; see `Experiment::map_offset`).
 pub fn build_map(
     experiment: &Experiment,
     run: &SimulatedRun,
     method: Method,
     resolution: f64,
+    offset: &Vector3,
 ) -> Octree {
     let mut tree = Octree::new(resolution);
     let raster = Raster {
@@ -162,28 +164,37 @@ pub fn build_map(
         vertical: &experiment.scanner.vertical_angles,
     };
     let max_range = experiment.scanner.max_range;
-    let params = OpdfParams::new(resolution);
+    let options = MergeOptions {
+        model: CellModel::with_risk(experiment.risk),
+        ..MergeOptions::default()
+    };
     let mut updater = RayUpdater::default();
     for scan in &run.scans {
         let chain = scan_chain(scan);
         let Some(propagator) = propagator(method, &chain) else {
-            let (origin, hits, misses) = ray_inputs(experiment, scan);
+            let (mut origin, mut hits, misses) = ray_inputs(experiment, scan);
+            origin += offset;
+            hits.iter_mut().for_each(|h| *h += offset);
             updater.insert_scan(&mut tree, &origin, &hits, &misses, max_range);
             continue;
         };
         let origin = propagator.origin();
-        let beams = beam_ends(experiment, scan, propagator.as_ref());
+        let mut beams = beam_ends(experiment, scan, propagator.as_ref());
+        for beam in &mut beams {
+            if let BeamEnd::Hit { point, .. } = beam {
+                *point += offset;
+            }
+        }
         let rotation = chain.nominal().rotation.to_rotation_matrix().into_inner();
         let grid = local_grid(
-            &origin.mean,
+            &(origin.mean + offset),
             &origin.covariance,
             &rotation,
             raster,
             &beams,
             max_range,
-            &params,
         );
-        merge(&mut tree, &grid, &MergeOptions::default());
+        merge(&mut tree, &grid, &options);
     }
     tree.shrink_to_fit();
     tree
@@ -191,10 +202,7 @@ pub fn build_map(
 
 /// The nominal origin, measured end points and no-return directions of a
 /// scan, in the scene frame (what OctoMap's `insertPointCloud` is given).
-pub fn ray_inputs(
-    experiment: &Experiment,
-    scan: &Scan,
-) -> (Point3, Vec<Point3>, Vec<crate::geometry::Vector3>) {
+pub fn ray_inputs(experiment: &Experiment, scan: &Scan) -> (Point3, Vec<Point3>, Vec<Vector3>) {
     let pose = scan.chain.scene_from_camera();
     let origin = Point3::from(pose.translation.vector);
     let mut hits = Vec::with_capacity(scan.measurements.len());

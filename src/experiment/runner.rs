@@ -4,7 +4,7 @@
 use super::model::{beam_ends_with_truth, build_map, propagator, scan_chain, Method};
 use super::{simulate, Experiment};
 use crate::error::{Error, Result};
-use crate::eval::ground_truth::voxelise;
+use crate::eval::ground_truth::voxelise_at;
 use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
 use crate::mapping::Octree;
@@ -85,9 +85,14 @@ pub struct TimingRow {
     pub score_s: f64,
 }
 
-/// The truth every run of the experiment is scored against.
-pub fn ground_truth(experiment: &Experiment) -> Octree {
-    voxelise(&experiment.scene, experiment.resolution)
+/// The truth the run with `seed` is scored against (in its map frame,
+/// `Experiment::map_offset`).
+pub fn ground_truth(experiment: &Experiment, seed: u64) -> Octree {
+    voxelise_at(
+        &experiment.scene,
+        experiment.resolution,
+        &experiment.map_offset(seed),
+    )
 }
 
 /// Runs one seed: simulate, then build, score and check each method.
@@ -100,11 +105,12 @@ pub fn run_seed(
     let start = Instant::now();
     let run = simulate(experiment, seed, |_| {})?;
     let simulate_s = start.elapsed().as_secs_f64();
-    let observable = observable_cells(experiment, &run, experiment.resolution);
+    let offset = experiment.map_offset(seed);
+    let observable = observable_cells(experiment, &run, experiment.resolution, &offset);
     let (mut rows, mut timings, mut maps) = (Vec::new(), Vec::new(), Vec::new());
     for &method in &experiment.methods {
         let start = Instant::now();
-        let map = build_map(experiment, &run, method, experiment.resolution);
+        let map = build_map(experiment, &run, method, experiment.resolution, &offset);
         let model_s = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let s: MapScores = score_map(&map, truth, &observable);

@@ -1,31 +1,28 @@
-//! Merging a local spherical grid into the global octree by intersection
-//! search (MATH.md §5.3): descend only into octree cells that meet the grid's
-//! support, stop where the grid is uniformly unknown, update a whole cell at
-//! once where the grid is homogeneous over it, and fuse in log-odds.
+//! Merging a viewpoint's local grid into the global octree by intersection
+//! search (docs/math.md §5.3) with the chord cell model (§5.4): descend only
+//! into octree cells that meet the grid's beams; update a whole cell at once
+//! where every beam crossing it certifies it free; at the finest level take,
+//! for each beam whose centre line crosses the cell, the first-hit probability
+//! of its chord, combine the beams by "any surface inside" (the maximum) and
+//! fuse in log-odds.
 
+use super::chord::{ray_box, CellModel};
 use super::octree::{Clamp, Key, Octree, DEPTH};
-use super::spherical::LocalGrid;
+use super::opdf::logit;
+use super::spherical::{BinBox, LocalGrid};
+use crate::geometry::Vector3;
 
-/// The merge's tolerances (log-odds).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Log-odds smaller than this are not written: the cell stays as it was
+/// (absent means unknown), as occluded space does in OctoMap.
+const NEUTRAL: f32 = 1e-3;
+
+/// How a grid is merged.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct MergeOptions {
-    /// A cell whose bins span less than this is updated whole with their mean
-    /// (default 0.2).
-    pub homogeneous: f32,
-    /// Bins within ±this of 0 carry no information (default 0.05).
-    pub unknown: f32,
+    /// What one beam says about one cell.
+    pub model: CellModel,
     /// The map-level clamp.
     pub clamp: Clamp,
-}
-
-impl Default for MergeOptions {
-    fn default() -> Self {
-        Self {
-            homogeneous: 0.2,
-            unknown: 0.05,
-            clamp: Clamp::OCTOMAP,
-        }
-    }
 }
 
 /// Counters of one merge.
@@ -42,58 +39,116 @@ pub struct MergeStats {
 /// Fuses `grid` into `tree`.
 pub fn merge(tree: &mut Octree, grid: &LocalGrid, options: &MergeOptions) -> MergeStats {
     let mut stats = MergeStats::default();
-    recurse(tree, grid, options, Key([0, 0, 0]), 0, &mut stats);
+    let reach = grid.reach();
+    if reach.is_finite() {
+        let mut merger = Merger {
+            tree,
+            grid,
+            options,
+            reach,
+            stats: &mut stats,
+        };
+        merger.recurse(Key([0, 0, 0]), 0);
+    }
     stats
 }
 
-fn recurse(
-    tree: &mut Octree,
-    grid: &LocalGrid,
-    options: &MergeOptions,
-    key: Key,
-    depth: u8,
-    stats: &mut MergeStats,
-) {
-    stats.visited += 1;
-    let centre = tree.center(&key, depth).coords;
-    // The cube's circumscribed ball: a conservative superset of its bins.
-    let radius = tree.node_size(depth) * 0.5 * 3f64.sqrt();
-    let Some((bins, outside)) = grid.ball_bins(&centre, radius) else {
-        return;
-    };
-    let summary = grid.query(bins[0], bins[1], bins[2]);
-    let (mut min, mut max) = (summary.min, summary.max);
-    if outside {
-        // Whatever lies outside the grid is unknown (0).
-        min = min.min(0.0);
-        max = max.max(0.0);
-    }
-    if summary.known == 0 || max.abs().max(min.abs()) < options.unknown {
-        return;
-    }
-    if max - min < options.homogeneous {
-        tree.update_region(&key, depth, summary.mean, options.clamp);
+struct Merger<'a> {
+    tree: &'a mut Octree,
+    grid: &'a LocalGrid,
+    options: &'a MergeOptions,
+    reach: f64,
+    stats: &'a mut MergeStats,
+}
+
+impl Merger<'_> {
+    fn recurse(&mut self, key: Key, depth: u8) {
+        self.stats.visited += 1;
+        let centre = self.tree.center(&key, depth).coords;
+        let half = self.tree.node_size(depth) * 0.5;
+        // The cube's circumscribed ball: a conservative superset of its bins.
+        let Some(bins) = self.grid.ball_bins(&centre, half * 3f64.sqrt()) else {
+            return;
+        };
+        if bins.range.0 > self.reach {
+            return;
+        }
+        let s = self.grid.query(bins.azimuth, bins.elevation);
+        if s.filled == 0 || bins.range.0 > s.far {
+            // No beam reaches the cell: nothing is known about it.
+            return;
+        }
+        if !bins.outside && s.filled == s.bins && bins.range.1 < s.near && bins.range.0 > s.origin {
+            // Every beam crosses the whole cell well before its surface band
+            // and past the origin step: the chord model gives p_lo everywhere.
+            let free = self.options.model.free_log_odds();
+            self.tree
+                .update_region(&key, depth, free, self.options.clamp);
+            if depth == DEPTH {
+                self.stats.fine_updates += 1;
+            } else {
+                self.stats.coarse_updates += 1;
+            }
+            return;
+        }
         if depth == DEPTH {
-            stats.fine_updates += 1;
-        } else {
-            stats.coarse_updates += 1;
+            if let Some(p) = cell_occupancy(self.grid, &self.options.model, &centre, half, &bins) {
+                let l = logit(p) as f32;
+                if l.abs() >= NEUTRAL {
+                    self.tree.update(&key, l, self.options.clamp);
+                    self.stats.fine_updates += 1;
+                }
+            }
+            return;
         }
-        return;
-    }
-    if depth == DEPTH {
-        let v = grid.value_at(&centre);
-        if v.abs() >= options.unknown {
-            tree.update(&key, v, options.clamp);
-            stats.fine_updates += 1;
+        let bit = 15 - depth as u32;
+        for child in 0..8u16 {
+            let mut k = key;
+            for (axis, kk) in k.0.iter_mut().enumerate() {
+                *kk |= ((child >> axis) & 1) << bit;
+            }
+            self.recurse(k, depth + 1);
         }
-        return;
     }
-    let bit = 15 - depth as u32;
-    for child in 0..8u16 {
-        let mut k = key;
-        for (axis, kk) in k.0.iter_mut().enumerate() {
-            *kk |= ((child >> axis) & 1) << bit;
+}
+
+/// `P(C occupied | viewpoint)` for the cube `centre ± half`: the maximum over
+/// the beams whose centre line crosses it of their chord probability
+/// (§5.4). A cell in the field of view that no centre line crosses (between
+/// rays) takes the beams of the angular bin holding its centre, with the
+/// cell's whole range extent as the chord. `None`: no beam informs the cell.
+pub fn cell_occupancy(
+    grid: &LocalGrid,
+    model: &CellModel,
+    centre: &Vector3,
+    half: f64,
+    bins: &BinBox,
+) -> Option<f64> {
+    let mut best: Option<f64> = None;
+    let mut crossed = false;
+    let mut take = |p: Option<f64>| {
+        if let Some(p) = p {
+            best = Some(best.map_or(p, |b: f64| b.max(p)));
         }
-        recurse(tree, grid, options, k, depth + 1, stats);
+    };
+    for a in bins.azimuth.0..=bins.azimuth.1 {
+        for e in bins.elevation.0..=bins.elevation.1 {
+            let (beams, inverse) = grid.bin_beams(a, e);
+            for (beam, inv) in beams.iter().zip(inverse) {
+                if let Some((t0, t1)) = ray_box(&grid.origin, inv, centre, half) {
+                    crossed = true;
+                    take(model.occupancy(beam, t0, t1, grid.max_range));
+                }
+            }
+        }
     }
+    if !crossed {
+        if let Some((a, e)) = grid.bin_of(centre) {
+            let (lo, hi) = bins.range;
+            for beam in grid.bin_beams(a, e).0 {
+                take(model.occupancy(beam, lo, hi, grid.max_range));
+            }
+        }
+    }
+    best
 }

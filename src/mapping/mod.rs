@@ -1,6 +1,7 @@
 //! Occupancy modelling: the probabilistic octree, its OctoMap files, and the
 //! two ways of filling it (the paper's OPDF merge and OctoMap's ray update).
 
+pub mod chord;
 pub mod merge;
 pub mod octomap_io;
 pub mod octree;

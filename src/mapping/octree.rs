@@ -94,6 +94,13 @@ pub const LOG_ODDS_HIT: f32 = f32::from_bits(0x3f58_e883);
 /// OctoMap's miss update, `logodds(0.4)` = −0.4055, bit-exact.
 pub const LOG_ODDS_MISS: f32 = f32::from_bits(0xbecf_991f);
 
+impl Default for Clamp {
+    /// OctoMap's clamp.
+    fn default() -> Self {
+        Clamp::OCTOMAP
+    }
+}
+
 impl Clamp {
     /// OctoMap's defaults, `[logodds(0.1192), logodds(0.971)]` = [−2.00003, 3.51103]:
     /// the values its `.bt` reader gives free and occupied leaves.
@@ -108,7 +115,7 @@ impl Clamp {
     };
 
     #[inline]
-    fn apply(&self, v: f32) -> f32 {
+    pub fn apply(&self, v: f32) -> f32 {
         v.clamp(self.min, self.max)
     }
 }

@@ -1,15 +1,20 @@
-//! The local spherical grid of one viewpoint (MATH.md §5.1): range x azimuth x
-//! elevation bins around the mean sensor origin holding the log-odds of the
-//! extended OPDF of that viewpoint's beams.
+//! The local spherical grid of one viewpoint (docs/math.md §5.1): azimuth x
+//! elevation bins around the mean sensor origin, each holding the beams that
+//! fall in it (propagated range, σ along the beam, σ of the origin), with a
+//! min/max pyramid over the bins for the merge's box queries.
+//!
+//! The grid keeps no range bins: a cell's value is computed from each beam's
+//! chord through it (§5.4, `mapping::chord`), so nothing is sampled along the
+//! beam and no bin width enters the model.
 //!
 //! [DESIGN] The grid's axes follow the nominal sensor, not the scene: grid x is
 //! the boresight (camera z), y the camera x, z the camera y. A beam at
 //! horizontal angle h and vertical angle v then has azimuth h and elevation v,
 //! the raster maps onto the angular bins one to one, and no viewpoint puts its
-//! field of view across the poles or the azimuth wrap (MATH.md §8, open
-//! question 3, leaves the choice open). Merging costs one extra rotation.
+//! field of view across the poles or the azimuth wrap (§8, open question 3,
+//! leaves the choice open). Merging costs one extra rotation.
 
-use super::opdf::{logit, OpdfParams};
+use super::chord::{Beam, TAIL};
 use crate::geometry::{Matrix3, Vector3};
 
 /// A bin axis: `count` bins of `step` from `start`.
@@ -26,7 +31,7 @@ pub struct Axis {
 impl Axis {
     /// The (unclamped) bin index of `v`.
     #[inline]
-    fn index(&self, v: f64) -> isize {
+    pub fn index(&self, v: f64) -> isize {
         ((v - self.start) / self.step).floor() as isize
     }
 
@@ -57,50 +62,52 @@ impl Axis {
     }
 }
 
-/// One level of the min / max / sum / count pyramid over the bins.
-#[derive(Clone, Debug)]
-struct Level {
-    dims: [usize; 3],
-    min: Vec<f32>,
-    max: Vec<f32>,
-    sum: Vec<f32>,
-    known: Vec<u32>,
-}
-
-/// Aggregate of the bins of a box.
+/// Aggregate of the beams of a box of angular bins.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoxSummary {
-    /// Smallest log-odds (unknown bins count as 0).
-    pub min: f32,
-    /// Largest log-odds.
-    pub max: f32,
-    /// Mean log-odds.
-    pub mean: f32,
-    /// Bins some beam filled.
-    pub known: u32,
+    /// Smallest range where some beam's surface band starts (before it every
+    /// beam says "free"); `+∞` when no beam.
+    pub near: f64,
+    /// Largest range where some beam still carries information (`r + TAIL σ`,
+    /// or the maximum range for a no-return beam); `−∞` when no beam.
+    pub far: f64,
+    /// Largest `TAIL σ_o`: beyond it the origin step is complete.
+    pub origin: f64,
+    /// Angular bins holding at least one beam.
+    pub filled: u32,
+    /// Angular bins the (superset) box covers.
+    pub bins: u32,
 }
 
-/// A filled local grid.
-#[derive(Clone, Debug)]
-pub struct LocalGrid {
-    /// Mean sensor origin û in the scene frame.
-    pub origin: Vector3,
-    /// Rotation taking grid coordinates to scene coordinates.
-    pub scene_from_grid: Matrix3,
-    /// Range bins (m).
-    pub range: Axis,
-    /// Azimuth bins (rad).
-    pub azimuth: Axis,
-    /// Elevation bins (rad).
-    pub elevation: Axis,
-    /// `[range, azimuth, elevation]` bin counts.
-    dims: [usize; 3],
-    /// Log-odds per bin, range innermost (0: unknown).
-    values: Vec<f32>,
-    /// Whether some beam filled each angular bin (all its range bins).
-    filled: Vec<bool>,
-    /// The pyramid above the bins: level k aggregates 2^k bins a side.
-    levels: Vec<Level>,
+impl BoxSummary {
+    const EMPTY: BoxSummary = BoxSummary {
+        near: f64::INFINITY,
+        far: f64::NEG_INFINITY,
+        origin: 0.0,
+        filled: 0,
+        bins: 0,
+    };
+
+    fn add(&mut self, other: &BoxSummary) {
+        self.near = self.near.min(other.near);
+        self.far = self.far.max(other.far);
+        self.origin = self.origin.max(other.origin);
+        self.filled += other.filled;
+        self.bins += other.bins;
+    }
+}
+
+/// The angular bins a query covers, and the range interval of the query ball.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BinBox {
+    /// Azimuth bins, inclusive.
+    pub azimuth: (usize, usize),
+    /// Elevation bins, inclusive.
+    pub elevation: (usize, usize),
+    /// Nearest and farthest distance of the ball from the origin.
+    pub range: (f64, f64),
+    /// Whether the ball reaches outside the grid's field of view.
+    pub outside: bool,
 }
 
 /// A beam's end as the modeller knows it, in the scene frame.
@@ -119,221 +126,201 @@ pub fn spherical(v: &Vector3) -> (f64, f64, f64) {
     (r, v.y.atan2(v.x), v.z.atan2((v.x * v.x + v.y * v.y).sqrt()))
 }
 
+/// A filled local grid.
+#[derive(Clone, Debug)]
+pub struct LocalGrid {
+    /// Mean sensor origin û in the scene frame.
+    pub origin: Vector3,
+    /// Rotation taking grid coordinates to scene coordinates.
+    pub scene_from_grid: Matrix3,
+    /// Azimuth bins (rad).
+    pub azimuth: Axis,
+    /// Elevation bins (rad).
+    pub elevation: Axis,
+    /// The scanner's maximum range (m): how far a no-return beam clears.
+    pub max_range: f64,
+    /// Beams of bin `i = a · elevation.count + e`: `beams[offsets[i]..offsets[i+1]]`.
+    offsets: Vec<u32>,
+    beams: Vec<Beam>,
+    /// Componentwise inverse of each beam's direction (for ray/box chords).
+    inverse: Vec<Vector3>,
+    /// Level k aggregates 2^k bins a side; level 0 is the bins.
+    levels: Vec<Level>,
+}
+
+/// One level of the pyramid over the angular bins.
+#[derive(Clone, Debug)]
+struct Level {
+    dims: [usize; 2],
+    cells: Vec<BoxSummary>,
+}
+
 impl LocalGrid {
-    /// An empty grid (every bin unknown).
+    /// The grid of `beams` around `origin`; `origin_covariance` is Γ_u (scene
+    /// frame); each beam's `σ² = vᵀ Γ_s v` and `σ_o² = vᵀ Γ_u v` (§4.5).
+    /// Beams outside the angular bins are left out.
     pub fn new(
         origin: Vector3,
         scene_from_grid: Matrix3,
-        range: Axis,
         azimuth: Axis,
         elevation: Axis,
-    ) -> Self {
-        let dims = [range.count, azimuth.count, elevation.count];
-        Self {
-            origin,
-            scene_from_grid,
-            range,
-            azimuth,
-            elevation,
-            dims,
-            values: vec![0.0; dims.iter().product()],
-            filled: vec![false; dims[1] * dims[2]],
-            levels: Vec::new(),
-        }
-    }
-
-    #[inline]
-    fn flat(dims: &[usize; 3], r: usize, a: usize, e: usize) -> usize {
-        (a * dims[2] + e) * dims[0] + r
-    }
-
-    /// Fills the grid from one viewpoint's beams: for each beam, every range
-    /// bin of its angular bin gets `logit(clamp(p_ext(λ)))`, with
-    /// `σ² = vᵀ Γ_s v` and `σ_o² = vᵀ Γ_u v` (MATH.md §4.5); beams sharing an
-    /// angular bin are averaged. `origin_covariance` is Γ_u (scene frame).
-    pub fn fill(
-        &mut self,
-        beams: &[BeamEnd],
-        origin_covariance: &Matrix3,
-        params: &OpdfParams,
         max_range: f64,
-    ) {
-        let dims = self.dims;
-        let grid_from_scene = self.scene_from_grid.transpose();
-        let free = logit(params.p_lo) as f32;
-        let mut column = vec![0f32; dims[0]];
-        let mut hits_in_bin = vec![0u32; dims[1] * dims[2]];
-        for beam in beams {
-            let (direction, range, sigma) = match beam {
+        ends: &[BeamEnd],
+        origin_covariance: &Matrix3,
+    ) -> Self {
+        let grid_from_scene = scene_from_grid.transpose();
+        let bins = azimuth.count * elevation.count;
+        let mut binned: Vec<(u32, Beam)> = Vec::with_capacity(ends.len());
+        for end in ends {
+            let (direction, range, sigma) = match end {
                 BeamEnd::Hit { point, covariance } => {
-                    let d = point - self.origin;
+                    let d = point - origin;
                     let r = d.norm();
+                    if r.is_nan() || r <= 0.0 {
+                        continue;
+                    }
                     let v = d / r;
-                    // [DESIGN] Bins sample the profile at their centres, Δρ apart:
-                    // the sampled profile is the profile seen through a bin, whose
-                    // position error is uniform over Δρ (variance Δρ²/12). Without
-                    // it a surface between two centres, σ ≪ Δρ, raises neither.
-                    let sigma2 = (v.transpose() * covariance * v)[0].max(0.0)
-                        + self.range.step.powi(2) / 12.0;
+                    let sigma2 = (v.transpose() * covariance * v)[0].max(0.0);
                     (v, r, sigma2.sqrt())
                 }
-                BeamEnd::Miss { direction } => (*direction, f64::INFINITY, 0.0),
+                BeamEnd::Miss { direction } => (direction.normalize(), f64::INFINITY, 0.0),
             };
-            let sigma_o = (direction.transpose() * origin_covariance * direction)[0]
+            let sigma_origin = (direction.transpose() * origin_covariance * direction)[0]
                 .max(0.0)
                 .sqrt();
             let (_, az, el) = spherical(&(grid_from_scene * direction));
-            let (a, e) = (self.azimuth.index(az), self.elevation.index(el));
-            if a < 0 || e < 0 || a >= dims[1] as isize || e >= dims[2] as isize {
+            let (a, e) = (azimuth.index(az), elevation.index(el));
+            if a < 0 || e < 0 || a >= azimuth.count as isize || e >= elevation.count as isize {
                 continue;
             }
-            let (a, e) = (a as usize, e as usize);
-            // Exact values only near the origin step and the surface; the
-            // clamped free value everywhere between.
-            let near_origin = 8.0 * sigma_o;
-            let reach = if range.is_finite() {
-                range + 8.0 * sigma.max(params.thickness)
-            } else {
-                max_range
-            };
-            for (i, out) in column.iter_mut().enumerate() {
-                let lambda = self.range.centre(i);
-                *out = if lambda > reach {
-                    0.0
-                } else if lambda > near_origin
-                    && (!range.is_finite() || lambda < range - 8.0 * sigma.max(params.thickness))
-                {
-                    free
-                } else {
-                    logit(params.stored(lambda, range, sigma, sigma_o)) as f32
-                };
-            }
-            let slot = a * dims[2] + e;
-            let n = hits_in_bin[slot];
-            hits_in_bin[slot] += 1;
-            self.filled[slot] = true;
-            let bins = &mut self.values[slot * dims[0]..(slot + 1) * dims[0]];
-            if n == 0 {
-                bins.copy_from_slice(&column);
-            } else {
-                // Running mean of the beams in this bin.
-                let w = 1.0 / (n + 1) as f32;
-                for (old, v) in bins.iter_mut().zip(&column) {
-                    *old += (v - *old) * w;
-                }
-            }
+            let bin = a as usize * elevation.count + e as usize;
+            binned.push((
+                bin as u32,
+                Beam {
+                    direction,
+                    range,
+                    sigma,
+                    sigma_origin,
+                },
+            ));
         }
-        self.build_pyramid();
+        // Counting sort by bin, stable: beams keep their input order in a bin.
+        let mut offsets = vec![0u32; bins + 1];
+        for (bin, _) in &binned {
+            offsets[*bin as usize + 1] += 1;
+        }
+        for i in 0..bins {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut next = offsets.clone();
+        let mut beams = vec![
+            Beam {
+                direction: Vector3::zeros(),
+                range: 0.0,
+                sigma: 0.0,
+                sigma_origin: 0.0,
+            };
+            binned.len()
+        ];
+        for (bin, beam) in binned {
+            beams[next[bin as usize] as usize] = beam;
+            next[bin as usize] += 1;
+        }
+        let inverse = beams.iter().map(|b| b.direction.map(|c| 1.0 / c)).collect();
+        let mut grid = Self {
+            origin,
+            scene_from_grid,
+            azimuth,
+            elevation,
+            max_range,
+            offsets,
+            beams,
+            inverse,
+            levels: Vec::new(),
+        };
+        grid.build_pyramid();
+        grid
+    }
+
+    /// Number of beams held.
+    pub fn beam_count(&self) -> usize {
+        self.beams.len()
+    }
+
+    /// The beams of angular bin `(a, e)` with their inverse directions.
+    #[inline]
+    pub fn bin_beams(&self, a: usize, e: usize) -> (&[Beam], &[Vector3]) {
+        let i = a * self.elevation.count + e;
+        let (lo, hi) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
+        (&self.beams[lo..hi], &self.inverse[lo..hi])
     }
 
     fn build_pyramid(&mut self) {
-        self.levels.clear();
-        let mut dims = self.dims;
+        let mut dims = [self.azimuth.count, self.elevation.count];
+        let mut cells = Vec::with_capacity(dims[0] * dims[1]);
+        for a in 0..dims[0] {
+            for e in 0..dims[1] {
+                let mut s = BoxSummary::EMPTY;
+                let (beams, _) = self.bin_beams(a, e);
+                for b in beams {
+                    s.near = s.near.min(b.band_start(self.max_range));
+                    s.far = s.far.max(b.reach(self.max_range));
+                    s.origin = s.origin.max(TAIL * b.sigma_origin);
+                }
+                s.filled = u32::from(!beams.is_empty());
+                s.bins = 1;
+                cells.push(s);
+            }
+        }
+        self.levels = vec![Level { dims, cells }];
         while dims.iter().any(|&d| d > 1) {
-            let prev_dims = dims;
-            dims = dims.map(|d| d.div_ceil(2));
-            let n = dims.iter().product();
-            let mut next = Level {
-                dims,
-                min: vec![f32::INFINITY; n],
-                max: vec![f32::NEG_INFINITY; n],
-                sum: vec![0.0; n],
-                known: vec![0; n],
-            };
-            for a in 0..prev_dims[1] {
-                for e in 0..prev_dims[2] {
-                    for r in 0..prev_dims[0] {
-                        let i = Self::flat(&prev_dims, r, a, e);
-                        let j = Self::flat(&dims, r / 2, a / 2, e / 2);
-                        let (min, max, sum, known) = match self.levels.last() {
-                            None => {
-                                let v = self.values[i];
-                                (v, v, v, self.filled[i / prev_dims[0]] as u32)
-                            }
-                            Some(prev) => (prev.min[i], prev.max[i], prev.sum[i], prev.known[i]),
-                        };
-                        next.min[j] = next.min[j].min(min);
-                        next.max[j] = next.max[j].max(max);
-                        next.sum[j] += sum;
-                        next.known[j] += known;
-                    }
+            let prev = self.levels.last().expect("level 0");
+            let next_dims = dims.map(|d| d.div_ceil(2));
+            let mut next = vec![BoxSummary::EMPTY; next_dims[0] * next_dims[1]];
+            for a in 0..dims[0] {
+                for e in 0..dims[1] {
+                    next[(a / 2) * next_dims[1] + e / 2].add(&prev.cells[a * dims[1] + e]);
                 }
             }
-            self.levels.push(next);
+            dims = next_dims;
+            self.levels.push(Level { dims, cells: next });
         }
     }
 
-    /// Min, max, mean and known count over a superset of the bins
-    /// `[r0..=r1] x [a0..=a1] x [e0..=e1]`: the coarsest pyramid level where
-    /// the box spans at most two cells per axis (conservative for min/max).
-    pub fn query(&self, r: (usize, usize), a: (usize, usize), e: (usize, usize)) -> BoxSummary {
-        let span = (r.1 - r.0).max(a.1 - a.0).max(e.1 - e.0) + 1;
+    /// The aggregate over a superset of the bins `[a0..=a1] x [e0..=e1]`: the
+    /// coarsest pyramid level where the box spans at most two cells per axis.
+    pub fn query(&self, a: (usize, usize), e: (usize, usize)) -> BoxSummary {
+        let span = (a.1 - a.0).max(e.1 - e.0) + 1;
         let mut level = 0;
-        while level < self.levels.len() && (span >> level) > 2 {
+        while level + 1 < self.levels.len() && (span >> level) > 2 {
             level += 1;
         }
-        let (mut min, mut max, mut sum, mut known, mut bins) =
-            (f32::INFINITY, f32::NEG_INFINITY, 0.0f32, 0u32, 0usize);
-        let dims = if level == 0 {
-            self.dims
-        } else {
-            self.levels[level - 1].dims
-        };
+        let l = &self.levels[level];
+        let mut out = BoxSummary::EMPTY;
         for aa in a.0 >> level..=a.1 >> level {
             for ee in e.0 >> level..=e.1 >> level {
-                for rr in r.0 >> level..=r.1 >> level {
-                    let i = Self::flat(&dims, rr, aa, ee);
-                    let (lo, hi, s, k) = if level == 0 {
-                        let v = self.values[i];
-                        (v, v, v, self.filled[i / dims[0]] as u32)
-                    } else {
-                        let l = &self.levels[level - 1];
-                        (l.min[i], l.max[i], l.sum[i], l.known[i])
-                    };
-                    min = min.min(lo);
-                    max = max.max(hi);
-                    sum += s;
-                    known += k;
-                    bins += 1 << (3 * level);
-                }
+                out.add(&l.cells[aa * l.dims[1] + ee]);
             }
         }
-        BoxSummary {
-            min,
-            max,
-            mean: sum / bins as f32,
-            known,
-        }
+        out
     }
 
-    /// The log-odds of the bin containing scene point `p` (0 outside the grid).
-    pub fn value_at(&self, p: &Vector3) -> f32 {
-        let (r, az, el) = spherical(&(self.scene_from_grid.transpose() * (p - self.origin)));
-        let (i, a, e) = (
-            self.range.index(r),
-            self.azimuth.index(az),
-            self.elevation.index(el),
-        );
-        let dims = self.dims;
-        if i < 0
-            || a < 0
-            || e < 0
-            || i >= dims[0] as isize
-            || a >= dims[1] as isize
-            || e >= dims[2] as isize
-        {
-            return 0.0;
-        }
-        self.values[Self::flat(&dims, i as usize, a as usize, e as usize)]
+    /// The largest range at which any beam carries information.
+    pub fn reach(&self) -> f64 {
+        self.levels.last().map_or(f64::NEG_INFINITY, |l| {
+            l.cells
+                .iter()
+                .map(|c| c.far)
+                .fold(f64::NEG_INFINITY, f64::max)
+        })
     }
 
-    /// The bins that may hold any point of the ball of radius `radius` around
-    /// scene point `centre` (a superset), and whether the ball reaches outside
-    /// the grid. `None` when it misses the grid.
-    pub fn ball_bins(&self, centre: &Vector3, radius: f64) -> Option<([(usize, usize); 3], bool)> {
+    /// The angular bins that may hold any point of the ball of radius
+    /// `radius` around scene point `centre` (a superset), with the ball's
+    /// range interval. `None` when the ball misses the field of view.
+    pub fn ball_bins(&self, centre: &Vector3, radius: f64) -> Option<BinBox> {
         let c = self.scene_from_grid.transpose() * (centre - self.origin);
         let (dist, az, el) = spherical(&c);
-        let (r0, r1, r_out) = self.range.span((dist - radius).max(0.0), dist + radius)?;
         let half_pi = std::f64::consts::FRAC_PI_2;
         let (el_lo, el_hi, az_lo, az_hi) = if dist <= radius {
             (
@@ -355,7 +342,20 @@ impl LocalGrid {
         // The grid's azimuths lie within (−π/2, π/2): no wrap to handle unless
         // the cone covers everything.
         let (a0, a1, a_out) = self.azimuth.span(az_lo, az_hi)?;
-        Some(([(r0, r1), (a0, a1), (e0, e1)], r_out || e_out || a_out))
+        Some(BinBox {
+            azimuth: (a0, a1),
+            elevation: (e0, e1),
+            range: ((dist - radius).max(0.0), dist + radius),
+            outside: a_out || e_out,
+        })
+    }
+
+    /// The angular bin holding scene point `p`, if any.
+    pub fn bin_of(&self, p: &Vector3) -> Option<(usize, usize)> {
+        let (_, az, el) = spherical(&(self.scene_from_grid.transpose() * (p - self.origin)));
+        let (a, e) = (self.azimuth.index(az), self.elevation.index(el));
+        (a >= 0 && e >= 0 && a < self.azimuth.count as isize && e < self.elevation.count as isize)
+            .then_some((a as usize, e as usize))
     }
 }
 

@@ -1,6 +1,5 @@
-//! One viewpoint's local grid from its propagated beams (MATH.md §4.5, §5.1).
+//! One viewpoint's local grid from its propagated beams (docs/math.md §4.5, §5.1).
 
-use super::opdf::OpdfParams;
 use super::spherical::{Axis, BeamEnd, LocalGrid};
 use crate::geometry::{Matrix3, Vector3};
 
@@ -26,13 +25,12 @@ fn angle_axis(angles: &[f64], fallback_step: f64) -> Axis {
     }
 }
 
-/// Builds and fills the local grid of a viewpoint.
+/// Builds the local grid of a viewpoint: one angular bin per raster beam.
 ///
 /// - `origin`, `origin_covariance`: the propagated sensor origin û and Γ_u;
 /// - `scene_from_camera`: the nominal rotation of the sensor (sets the grid axes);
 /// - `beams`: the propagated ends, scene frame;
-/// - range bins of `params.thickness` out to the farthest end plus 8σ (or the
-///   maximum range for no-return beams).
+/// - `max_range`: how far a no-return beam clears.
 pub fn local_grid(
     origin: &Vector3,
     origin_covariance: &Matrix3,
@@ -40,7 +38,6 @@ pub fn local_grid(
     raster: Raster,
     beams: &[BeamEnd],
     max_range: f64,
-    params: &OpdfParams,
 ) -> LocalGrid {
     // Grid x = camera z (boresight), grid y = camera x, grid z = camera y.
     let camera_from_grid = Matrix3::new(0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0);
@@ -55,33 +52,15 @@ pub fn local_grid(
     } else {
         h_step
     };
-    let farthest = beams
-        .iter()
-        .map(|b| match b {
-            BeamEnd::Hit { point, covariance } => {
-                let d = point - origin;
-                let v = d / d.norm();
-                d.norm() + 8.0 * (v.transpose() * covariance * v)[0].max(0.0).sqrt()
-            }
-            BeamEnd::Miss { .. } => max_range,
-        })
-        .fold(0.0f64, f64::max)
-        .max(params.thickness)
-        + 8.0 * params.thickness;
-    let range = Axis {
-        start: 0.0,
-        step: params.thickness,
-        count: (farthest / params.thickness).ceil() as usize,
-    };
-    let mut grid = LocalGrid::new(
+    LocalGrid::new(
         *origin,
         scene_from_grid,
-        range,
         angle_axis(raster.horizontal, v_step),
         angle_axis(raster.vertical, h_step),
-    );
-    grid.fill(beams, origin_covariance, params, max_range);
-    grid
+        max_range,
+        beams,
+        origin_covariance,
+    )
 }
 
 #[cfg(test)]

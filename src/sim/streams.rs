@@ -22,6 +22,8 @@ pub enum Stream {
     Viewpoint(u32),
     /// Per-beam errors of one block of beams of one viewpoint.
     Beams { viewpoint: u32, block: u32 },
+    /// The sub-voxel offset of the map's grid (evaluation, not an error).
+    GridOffset,
 }
 
 impl Stream {
@@ -32,6 +34,7 @@ impl Stream {
             Stream::Beams { viewpoint, block } => {
                 (2 << 62) | ((viewpoint as u64) << 32) | block as u64
             }
+            Stream::GridOffset => 3 << 62,
         }
     }
 }

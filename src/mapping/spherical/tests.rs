@@ -1,66 +1,100 @@
 use super::*;
 use rand::{Rng, SeedableRng};
 
+/// A grid of random beams (some bins empty, some with several beams).
 fn random_grid(rng: &mut impl Rng) -> LocalGrid {
     let axis = |count| Axis {
-        start: 0.0,
+        start: -0.2,
         step: 0.01,
         count,
     };
-    let mut grid = LocalGrid::new(
+    let ends: Vec<BeamEnd> = (0..400)
+        .map(|_| {
+            let direction = Vector3::new(
+                1.0,
+                rng.random_range(-0.2..0.2),
+                rng.random_range(-0.2..0.12),
+            )
+            .normalize();
+            if rng.random_bool(0.1) {
+                BeamEnd::Miss { direction }
+            } else {
+                let sigma = rng.random_range(0.001..0.05);
+                BeamEnd::Hit {
+                    point: direction * rng.random_range(0.2..1.5),
+                    covariance: Matrix3::identity() * sigma * sigma,
+                }
+            }
+        })
+        .collect();
+    LocalGrid::new(
         Vector3::zeros(),
         Matrix3::identity(),
-        axis(37),
-        axis(11),
-        axis(6),
-    );
-    let dims = grid.dims;
-    for slot in 0..dims[1] * dims[2] {
-        if rng.random_bool(0.7) {
-            grid.filled[slot] = true;
-            for v in &mut grid.values[slot * dims[0]..(slot + 1) * dims[0]] {
-                *v = rng.random_range(-3.0..3.0f32);
-            }
-        }
-    }
-    grid.build_pyramid();
-    grid
+        axis(41),
+        axis(33),
+        2.0,
+        &ends,
+        &(Matrix3::identity() * 1e-6),
+    )
 }
 
 #[test]
-fn box_queries_bound_the_bins_they_cover() {
+fn box_queries_bound_the_beams_they_cover() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
     let grid = random_grid(&mut rng);
-    let dims = grid.dims;
+    assert!(grid.beam_count() > 300);
+    let dims = [grid.azimuth.count, grid.elevation.count];
     for _ in 0..500 {
         let pick = |rng: &mut rand_chacha::ChaCha8Rng, n: usize| {
             let a = rng.random_range(0..n);
             (a, rng.random_range(a..n))
         };
-        let (r, a, e) = (
-            pick(&mut rng, dims[0]),
-            pick(&mut rng, dims[1]),
-            pick(&mut rng, dims[2]),
-        );
-        let s = grid.query(r, a, e);
-        let (mut min, mut max, mut known) = (f32::INFINITY, f32::NEG_INFINITY, 0);
+        let (a, e) = (pick(&mut rng, dims[0]), pick(&mut rng, dims[1]));
+        let s = grid.query(a, e);
+        let (mut near, mut far, mut origin, mut filled) =
+            (f64::INFINITY, f64::NEG_INFINITY, 0.0f64, 0u32);
         for aa in a.0..=a.1 {
             for ee in e.0..=e.1 {
-                for rr in r.0..=r.1 {
-                    let i = LocalGrid::flat(&dims, rr, aa, ee);
-                    min = min.min(grid.values[i]);
-                    max = max.max(grid.values[i]);
-                    known += grid.filled[i / dims[0]] as u32;
+                let (beams, _) = grid.bin_beams(aa, ee);
+                filled += u32::from(!beams.is_empty());
+                for b in beams {
+                    near = near.min(b.band_start(grid.max_range));
+                    far = far.max(b.reach(grid.max_range));
+                    origin = origin.max(TAIL * b.sigma_origin);
                 }
             }
         }
+        let bins = ((a.1 - a.0 + 1) * (e.1 - e.0 + 1)) as u32;
         assert!(
-            s.min <= min && s.max >= max && s.known >= known,
-            "{s:?} vs [{min}, {max}] {known}"
+            s.near <= near && s.far >= far && s.origin >= origin,
+            "{s:?} vs {near} {far} {origin}"
         );
-        assert!(s.mean >= s.min - 1e-5 && s.mean <= s.max + 1e-5);
-        if r.0 == r.1 && a.0 == a.1 && e.0 == e.1 {
-            assert_eq!((s.min, s.max), (min, max));
+        // A superset: at least the bins asked for, and "all filled" only
+        // when they are.
+        assert!(s.bins >= bins);
+        if s.filled == s.bins {
+            assert_eq!(filled, bins);
+        }
+        if a.0 == a.1 && e.0 == e.1 {
+            assert_eq!((s.near, s.far, s.bins, s.filled), (near, far, 1, filled));
         }
     }
+}
+
+#[test]
+fn beams_land_in_their_bins_in_input_order() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+    let grid = random_grid(&mut rng);
+    let mut total = 0;
+    for a in 0..grid.azimuth.count {
+        for e in 0..grid.elevation.count {
+            let (beams, inverse) = grid.bin_beams(a, e);
+            total += beams.len();
+            for (b, inv) in beams.iter().zip(inverse) {
+                assert_eq!(grid.bin_of(&(b.direction * 0.5)), Some((a, e)));
+                assert!((b.direction.component_mul(inv) - Vector3::repeat(1.0)).norm() < 1e-12);
+            }
+        }
+    }
+    assert_eq!(total, grid.beam_count());
 }
