@@ -15,9 +15,8 @@
 //! information (`q = ½`). A no-return beam crosses C free when `a` is within
 //! the maximum range.
 
-use super::opdf::logit;
+use super::opdf::{logit, normal_cdf};
 use crate::geometry::Vector3;
-use statrs::function::erf::erfc;
 
 /// Standard deviations beyond which a Gaussian tail is taken as 0
 /// (Φ(−7) ≈ 1.3e-12): it bounds the band around a surface where the chord
@@ -81,12 +80,6 @@ impl Beam {
             max_range
         }
     }
-}
-
-/// `Φ(x)`, the standard normal CDF.
-#[inline]
-pub fn normal_cdf(x: f64) -> f64 {
-    0.5 * erfc(-x * std::f64::consts::FRAC_1_SQRT_2)
 }
 
 impl CellModel {

@@ -39,13 +39,11 @@ pub struct MergeStats {
 /// Fuses `grid` into `tree`.
 pub fn merge(tree: &mut Octree, grid: &LocalGrid, options: &MergeOptions) -> MergeStats {
     let mut stats = MergeStats::default();
-    let reach = grid.reach();
-    if reach.is_finite() {
+    if grid.beam_count() > 0 {
         let mut merger = Merger {
             tree,
             grid,
             options,
-            reach,
             stats: &mut stats,
         };
         merger.recurse(Key([0, 0, 0]), 0);
@@ -57,7 +55,6 @@ struct Merger<'a> {
     tree: &'a mut Octree,
     grid: &'a LocalGrid,
     options: &'a MergeOptions,
-    reach: f64,
     stats: &'a mut MergeStats,
 }
 
@@ -70,9 +67,6 @@ impl Merger<'_> {
         let Some(bins) = self.grid.ball_bins(&centre, half * 3f64.sqrt()) else {
             return;
         };
-        if bins.range.0 > self.reach {
-            return;
-        }
         let s = self.grid.query(bins.azimuth, bins.elevation);
         if s.filled == 0 || bins.range.0 > s.far {
             // No beam reaches the cell: nothing is known about it.

@@ -111,7 +111,13 @@ fn standard_normal_cdf(x: f64, sigma: f64) -> f64 {
     if sigma <= 0.0 {
         return if x >= 0.0 { 1.0 } else { 0.0 };
     }
-    0.5 * erfc(-x / (sigma * std::f64::consts::SQRT_2))
+    normal_cdf(x / sigma)
+}
+
+/// `Φ(x)`, the standard normal CDF.
+#[inline]
+pub fn normal_cdf(x: f64) -> f64 {
+    0.5 * erfc(-x * std::f64::consts::FRAC_1_SQRT_2)
 }
 
 /// Log-odds `ln(p / (1 − p))`.

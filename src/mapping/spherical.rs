@@ -204,7 +204,8 @@ impl LocalGrid {
                 },
             ));
         }
-        // Counting sort by bin, stable: beams keep their input order in a bin.
+        // Stable: beams keep their input order within a bin.
+        binned.sort_by_key(|(bin, _)| *bin);
         let mut offsets = vec![0u32; bins + 1];
         for (bin, _) in &binned {
             offsets[*bin as usize + 1] += 1;
@@ -212,20 +213,7 @@ impl LocalGrid {
         for i in 0..bins {
             offsets[i + 1] += offsets[i];
         }
-        let mut next = offsets.clone();
-        let mut beams = vec![
-            Beam {
-                direction: Vector3::zeros(),
-                range: 0.0,
-                sigma: 0.0,
-                sigma_origin: 0.0,
-            };
-            binned.len()
-        ];
-        for (bin, beam) in binned {
-            beams[next[bin as usize] as usize] = beam;
-            next[bin as usize] += 1;
-        }
+        let beams: Vec<Beam> = binned.into_iter().map(|(_, beam)| beam).collect();
         let inverse = beams.iter().map(|b| b.direction.map(|c| 1.0 / c)).collect();
         let mut grid = Self {
             origin,
