@@ -113,6 +113,25 @@ mod tests {
     }
 
     #[test]
+    fn faces_on_cell_planes_leave_the_touching_cells_free_and_offsets_move_the_truth() {
+        // A 0.2 m cube whose faces lie exactly on 5 cm cell planes: 4 cells a side.
+        let (_d, s) =
+            scene("[[object]]\nshape = \"box\"\nsize = [0.2, 0.2, 0.2]\nxyz = [0.1, 0.1, 0.1]\n");
+        let truth = voxelise(&s, 0.05);
+        assert_eq!(cell_counts(&truth).0, 4 * 4 * 4);
+        // A sub-voxel offset puts the faces inside cells: 5 a side.
+        let shifted = voxelise_at(&s, 0.05, &Vector3::new(0.01, 0.02, 0.03));
+        assert_eq!(cell_counts(&shifted).0, 5 * 5 * 5);
+        // A whole-cell offset moves the truth by one cell.
+        let moved = voxelise_at(&s, 0.05, &Vector3::new(0.05, 0.0, 0.0));
+        assert_eq!(cell_counts(&moved).0, 4 * 4 * 4);
+        let at = |t: &Octree, x: f64| t.value_at(&Point3::new(x, 0.1, 0.1)).map(is_occupied);
+        assert_eq!(at(&truth, 0.025), Some(true));
+        assert_eq!(at(&moved, 0.025), Some(false));
+        assert_eq!(at(&moved, 0.225), Some(true));
+    }
+
+    #[test]
     fn every_cell_a_solid_meets_is_occupied_and_the_rest_free() {
         // A 0.2 m cube off the 5 cm grid spans 5 cells per axis.
         let (_d, s) = scene(

@@ -487,6 +487,35 @@ mod tests {
     use super::*;
 
     #[test]
+    fn grid_offsets_are_sub_voxel_per_seed_and_zero_when_off() {
+        let path = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/experiments/quickstart.toml"
+        ));
+        let mut experiment = Experiment::load(path).unwrap();
+        assert!(!experiment.grid_offset);
+        assert_eq!(experiment.map_offset(1), Vector3::zeros());
+        experiment.grid_offset = true;
+        let res = experiment.resolution;
+        let offsets: Vec<Vector3> = (1..=20).map(|s| experiment.map_offset(s)).collect();
+        for o in &offsets {
+            assert!(o.iter().all(|c| (0.0..res).contains(c)), "{o:?}");
+        }
+        assert_eq!(experiment.map_offset(3), offsets[2], "reproducible");
+        for (i, a) in offsets.iter().enumerate() {
+            for b in &offsets[i + 1..] {
+                assert!((a - b).amax() > 0.0, "two seeds share an offset");
+            }
+        }
+        // Spread over the cell, not stuck in a corner: each axis's mean near res/2.
+        let mean = offsets.iter().sum::<Vector3>() / 20.0;
+        assert!(
+            mean.iter().all(|c| (0.3 * res..0.7 * res).contains(c)),
+            "{mean:?}"
+        );
+    }
+
+    #[test]
     fn sweep_cells_and_overrides() {
         let path = Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
