@@ -116,7 +116,9 @@ fn set_value(
             toml::Value::Array(a) => part.parse::<usize>().ok().and_then(|i| a.get_mut(i)),
             _ => None,
         }
-        .ok_or_else(|| format!("sweep field '{field}': no '{part}' here"))?;
+        .ok_or_else(|| {
+            format!("sweep field '{field}': no '{part}' here (set it in the file to sweep it)")
+        })?;
     }
     match (&*slot, new) {
         (toml::Value::Float(_) | toml::Value::Integer(_), toml::Value::Float(f)) => {

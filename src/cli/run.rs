@@ -199,6 +199,12 @@ fn finalize(
         methods,
     )?;
     plots::plot_coverage(&out.join("coverage.svg"), &summary, &labels[0], methods)?;
+    plots::plot_safety(
+        &out.join("safety.svg"),
+        &summary,
+        &experiment.cells(),
+        methods,
+    )?;
     Ok(summary)
 }
 

@@ -142,6 +142,81 @@ pub fn plot_scores(
     Ok(())
 }
 
+/// `safety.svg`, when the experiment sweeps the risk level
+/// (`experiment.risk`): the safety curve, false-free rate against precision
+/// as ε varies, one line per method (and value of the other axes), 95%
+/// intervals of the false-free rate. A method that ignores ε (the ray
+/// update) is a single point.
+pub fn plot_safety(
+    path: &Path,
+    summary: &[SummaryRow],
+    cells: &[Vec<(String, SweepValue)>],
+    methods: &[Method],
+) -> Result<()> {
+    let Some(risk_axis) = cells
+        .first()
+        .and_then(|c| c.iter().position(|(f, _)| f == "experiment.risk"))
+    else {
+        return Ok(());
+    };
+    let mut series: Vec<Series> = Vec::new();
+    for &method in methods {
+        for cell in cells {
+            let others: Vec<(String, SweepValue)> = cell
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != risk_axis)
+                .map(|(_, v)| v.clone())
+                .collect();
+            let rest = Experiment::cell_label(&others);
+            let name = if rest.is_empty() {
+                method.to_string()
+            } else {
+                format!("{method} {rest}")
+            };
+            let label = Experiment::cell_label(cell);
+            let (Some(precision), Some(false_free)) = (
+                mean(summary, &label, method, "precision"),
+                mean(summary, &label, method, "false_free_rate"),
+            ) else {
+                continue;
+            };
+            if !(precision.mean.is_finite() && false_free.mean.is_finite()) {
+                continue;
+            }
+            let index = match series.iter().position(|s| s.name == name) {
+                Some(i) => i,
+                None => {
+                    series.push(Series {
+                        name,
+                        points: Vec::new(),
+                        intervals: Vec::new(),
+                    });
+                    series.len() - 1
+                }
+            };
+            let x = precision.mean;
+            series[index].points.push((x, false_free.mean));
+            if false_free.ci95_low.is_finite() {
+                series[index]
+                    .intervals
+                    .push((x, false_free.ci95_low, false_free.ci95_high));
+            }
+        }
+    }
+    panels(
+        path,
+        &[Panel {
+            title: "safety curve: false-free rate vs precision as the risk level varies",
+            x_label: "precision",
+            y_label: "false-free rate (lower is safer)",
+            log_x: false,
+            log_y: false,
+            series: &series,
+        }],
+    )
+}
+
 /// `coverage.svg`: the share of true points inside the 1, 2, 3 sigma
 /// ellipsoids per method (first cell) against the χ²₃ expectation.
 pub fn plot_coverage(

@@ -1,19 +1,27 @@
-//! Cell occupancy from a beam's chord (docs/math.md §5.4): what one beam says
-//! about one octree cell.
+//! The cell-occupancy model (docs/math.md §5.4): what one viewpoint says about
+//! one octree cell.
 //!
 //! A beam from the mean origin along the unit direction `v` crosses cell C over
 //! the range interval `[a, b]` (the chord). The surface it measured lies at
 //! `λ ~ N(r, σ²)` along the beam (`σ² = vᵀ Γ_s v`, §4.5). By the first-hit model
-//! of §4.7 the surface is inside C, or in front of it (C occluded: prior ½), or
-//! beyond it (the beam crossed C: free, `p_lo`):
+//! of §4.7 the surface is inside C, or in front of it (C occluded), or beyond
+//! it (the beam crossed C): [`CellModel::split`].
 //!
-//! `P(C occ | beam) = P(a ≤ λ ≤ b) + ½ P(λ < a) + q P(λ > b)`, `q = p_lo`,
+//! A viewpoint's verdict on C combines the chance `H` that a surface lies
+//! inside C (the most confident beam) with the share `F` of C's volume it
+//! sees in front of the surface ([`CellModel::free_at`]):
 //!
-//! blended with ½ by the origin step `w = Φ(m / σ_o)` at the chord's midpoint
-//! `m` (§4.4): `(1 − w) ½ + w P`. With a risk level ε (§5.4) a beam calls C free
-//! only when `P(λ > b) ≥ 1 − ε`; otherwise the free event carries no
-//! information (`q = ½`). A no-return beam crosses C free when `a` is within
-//! the maximum range.
+//! `P(C occ) = H + (1 − H) (1 − F) / (2 − F)`
+//!
+//! — a beam that crossed only part of C says nothing about the rest
+//! ([`CellModel::view_occupancy`]). With a risk level ε a viewpoint calls C
+//! free only when it sees at least `1 − ε` of it in front of the surface, each
+//! point with probability at least `1 − ε`; otherwise it is silent.
+//!
+//! [`CellModel::occupancy`] is the single-beam chord posterior
+//! `P(a ≤ λ ≤ b) + ½ P(λ < a) + p_lo P(λ > b)`: the verdict of one beam whose
+//! footprint covers all of C, the building block the tests check against a
+//! Monte Carlo of the first-hit model.
 
 use super::opdf::{logit, normal_cdf};
 use crate::geometry::Vector3;
@@ -30,8 +38,9 @@ pub struct CellModel {
     pub p_lo: f64,
     /// Upper clamp of a beam's probability (0.98), so log-odds stay finite.
     pub p_hi: f64,
-    /// Risk level ε: a beam calls a cell free only when `P(λ > b) ≥ 1 − ε`.
-    /// `None`: off (every crossed part of a cell counts as free evidence).
+    /// Risk level ε: a viewpoint calls a cell free only when it sees at least
+    /// `1 − ε` of it in front of the surface, each point with `P(λ > ρ) ≥ 1 − ε`.
+    /// `None`: off (every part seen free counts as free evidence).
     pub risk: Option<f64>,
 }
 
@@ -108,15 +117,67 @@ impl CellModel {
         } else {
             self.p_lo
         };
-        let mid = 0.5 * (a + b);
-        let w = if mid >= TAIL * beam.sigma_origin {
-            1.0
-        } else if beam.sigma_origin > 0.0 {
-            normal_cdf(mid / beam.sigma_origin)
-        } else {
-            1.0
-        };
+        let w = origin_step(0.5 * (a + b), beam.sigma_origin);
         Some(((1.0 - w) * 0.5 + w * chord).clamp(self.p_lo, self.p_hi))
+    }
+
+    /// Where the surface lies against the chord `[a, b]`:
+    /// `(P(λ < a), P(a ≤ λ ≤ b), P(λ > b))`. A no-return beam is beyond every
+    /// chord that starts within the maximum range, and says nothing past it.
+    pub fn split(&self, beam: &Beam, a: f64, b: f64, max_range: f64) -> (f64, f64, f64) {
+        if !beam.range.is_finite() {
+            return (0.0, 0.0, f64::from(a < max_range));
+        }
+        let (r, sigma) = (beam.range, beam.sigma);
+        if sigma <= 0.0 {
+            return (
+                f64::from(r < a),
+                f64::from(a <= r && r <= b),
+                f64::from(r > b),
+            );
+        }
+        if a > r + TAIL * sigma {
+            return (1.0, 0.0, 0.0);
+        }
+        if b < r - TAIL * sigma {
+            return (0.0, 0.0, 1.0);
+        }
+        let before = normal_cdf((a - r) / sigma);
+        let after = normal_cdf((r - b) / sigma);
+        (before, (1.0 - before - after).max(0.0), after)
+    }
+
+    /// How surely the point at range `rho` on this beam is free: `P(λ > ρ)`
+    /// times the origin step `Φ(ρ / σ_o)`, or 0 when the risk level does not
+    /// allow calling it free (`P(λ > ρ) < 1 − ε`). A no-return beam frees every
+    /// point within the maximum range.
+    pub fn free_at(&self, beam: &Beam, rho: f64, max_range: f64) -> f64 {
+        let beyond = if beam.range.is_finite() {
+            let (_, _, after) = self.split(beam, rho, rho, max_range);
+            after
+        } else {
+            f64::from(rho < max_range)
+        };
+        match self.risk {
+            Some(eps) if beyond < 1.0 - eps => 0.0,
+            _ => beyond * origin_step(rho, beam.sigma_origin),
+        }
+    }
+
+    /// One viewpoint's `P(C occupied)` from the probability `hit` that a
+    /// surface lies inside C (any beam) and the fraction `free` of C's volume
+    /// its beams certify free (§5.4): `H + (1 − H) (1 − F) / (2 − F)`, the
+    /// posterior of "C holds a surface point" with prior ½ and the point
+    /// uniformly placed in C, once a fraction F of C is seen empty. Clamped to
+    /// `[p_lo, p_hi]`.
+    pub fn view_occupancy(&self, hit: f64, free: f64) -> f64 {
+        let free = free.clamp(0.0, 1.0);
+        let hit = hit.clamp(0.0, 1.0);
+        let rest = match self.risk {
+            Some(eps) if free < 1.0 - eps => 0.5,
+            _ => (1.0 - free) / (2.0 - free),
+        };
+        (hit + (1.0 - hit) * rest).clamp(self.p_lo, self.p_hi)
     }
 
     /// The first-hit posterior over the chord, before the origin step.
@@ -142,6 +203,17 @@ impl CellModel {
             _ => self.p_lo,
         };
         inside + 0.5 * before + q * after
+    }
+}
+
+/// The origin step `Φ(m / σ_o)` (§4.4): how surely range `m` lies in front of
+/// the uncertain sensor origin.
+#[inline]
+pub fn origin_step(m: f64, sigma_origin: f64) -> f64 {
+    if m >= TAIL * sigma_origin || sigma_origin <= 0.0 {
+        1.0
+    } else {
+        normal_cdf(m / sigma_origin)
     }
 }
 

@@ -1,12 +1,11 @@
 //! Merging a viewpoint's local grid into the global octree by intersection
-//! search (docs/math.md §5.3) with the chord cell model (§5.4): descend only
-//! into octree cells that meet the grid's beams; update a whole cell at once
-//! where every beam crossing it certifies it free; at the finest level take,
-//! for each beam whose centre line crosses the cell, the first-hit probability
-//! of its chord, combine the beams by "any surface inside" (the maximum) and
-//! fuse in log-odds.
+//! search (docs/math.md §5.3) with the cell-occupancy model (§5.4): descend
+//! only into octree cells that meet the grid's beams; update a whole cell at
+//! once where every beam certifies all of it free; at the finest level combine
+//! the chance that a surface lies inside the cell with the share of the cell
+//! seen in front of the surface, and fuse in log-odds.
 
-use super::chord::{ray_box, CellModel};
+use super::chord::{origin_step, ray_box, CellModel};
 use super::octree::{Clamp, Key, Octree, DEPTH};
 use super::opdf::logit;
 use super::spherical::{BinBox, LocalGrid};
@@ -106,11 +105,16 @@ impl Merger<'_> {
     }
 }
 
-/// `P(C occupied | viewpoint)` for the cube `centre ± half`: the maximum over
-/// the beams whose centre line crosses it of their chord probability
-/// (§5.4). A cell in the field of view that no centre line crosses (between
-/// rays) takes the beams of the angular bin holding its centre, with the
-/// cell's whole range extent as the chord. `None`: no beam informs the cell.
+/// `P(C occupied | viewpoint)` for the cube `centre ± half` (§5.4), from two
+/// things the viewpoint says about C:
+/// - `H`, how surely a surface lies inside C: the maximum, over the beams whose
+///   centre line crosses C, of their chord's first-hit probability `P(a ≤ λ ≤ b)`
+///   (a cell no centre line crosses takes the beams of the bin holding its
+///   centre, with its whole range extent as the chord);
+/// - `F`, the share of C seen in front of the surface: the mean over C's eight
+///   corners of `P(λ > ρ)` against the nearest surface of the corner's bin.
+///
+/// `None`: no beam informs the cell.
 pub fn cell_occupancy(
     grid: &LocalGrid,
     model: &CellModel,
@@ -118,20 +122,17 @@ pub fn cell_occupancy(
     half: f64,
     bins: &BinBox,
 ) -> Option<f64> {
-    let mut best: Option<f64> = None;
+    let max_range = grid.max_range;
+    let mut hit = 0.0f64;
     let mut crossed = false;
-    let mut take = |p: Option<f64>| {
-        if let Some(p) = p {
-            best = Some(best.map_or(p, |b: f64| b.max(p)));
-        }
-    };
     for a in bins.azimuth.0..=bins.azimuth.1 {
         for e in bins.elevation.0..=bins.elevation.1 {
             let (beams, inverse) = grid.bin_beams(a, e);
             for (beam, inv) in beams.iter().zip(inverse) {
                 if let Some((t0, t1)) = ray_box(&grid.origin, inv, centre, half) {
                     crossed = true;
-                    take(model.occupancy(beam, t0, t1, grid.max_range));
+                    let (_, inside, _) = model.split(beam, t0, t1, max_range);
+                    hit = hit.max(inside * origin_step(0.5 * (t0 + t1), beam.sigma_origin));
                 }
             }
         }
@@ -140,9 +141,26 @@ pub fn cell_occupancy(
         if let Some((a, e)) = grid.bin_of(centre) {
             let (lo, hi) = bins.range;
             for beam in grid.bin_beams(a, e).0 {
-                take(model.occupancy(beam, lo, hi, grid.max_range));
+                let (_, inside, _) = model.split(beam, lo, hi, max_range);
+                hit = hit.max(inside * origin_step(0.5 * (lo + hi), beam.sigma_origin));
             }
         }
     }
-    best
+    if hit >= model.p_hi {
+        // A surface surely inside: the share seen free changes nothing.
+        return Some(model.p_hi);
+    }
+    let mut free = 0.0;
+    for corner in 0..8u8 {
+        let sign = |axis: u8| if corner >> axis & 1 == 1 { half } else { -half };
+        let point = centre + Vector3::new(sign(0), sign(1), sign(2));
+        let Some((a, e)) = grid.bin_of(&point) else {
+            continue;
+        };
+        if let Some(surface) = grid.bin_surface(a, e) {
+            free += model.free_at(surface, (point - grid.origin).norm(), max_range);
+        }
+    }
+    free /= 8.0;
+    (hit > 0.0 || free > 0.0).then(|| model.view_occupancy(hit, free))
 }

@@ -144,6 +144,9 @@ pub struct LocalGrid {
     beams: Vec<Beam>,
     /// Componentwise inverse of each beam's direction (for ray/box chords).
     inverse: Vec<Vector3>,
+    /// Per bin, the nearest the surface may come within the bin's solid
+    /// angle (see `bin_surface`); `None` for an empty bin.
+    surfaces: Vec<Option<Beam>>,
     /// Level k aggregates 2^k bins a side; level 0 is the bins.
     levels: Vec<Level>,
 }
@@ -224,8 +227,10 @@ impl LocalGrid {
             offsets,
             beams,
             inverse,
+            surfaces: Vec::new(),
             levels: Vec::new(),
         };
+        grid.build_surfaces();
         grid.build_pyramid();
         grid
     }
@@ -243,6 +248,75 @@ impl LocalGrid {
         (&self.beams[lo..hi], &self.inverse[lo..hi])
     }
 
+    /// The nearest surface of bin `(a, e)`: a beam of the bin's own, but at
+    /// the smallest range its surface may take anywhere within the bin's solid
+    /// angle, so that a point judged by its bin is called free only if it is
+    /// in front of the surface across the whole bin (§5.4). `None`: an empty
+    /// bin (nothing is known there).
+    #[inline]
+    pub fn bin_surface(&self, a: usize, e: usize) -> Option<&Beam> {
+        self.surfaces[a * self.elevation.count + e].as_ref()
+    }
+
+    /// Each bin's nearest surface: the closest of its own beams, pulled to
+    /// half-way towards any nearer neighbour (the surface between two beams
+    /// is taken as linear in angle), or to a returning neighbour's range when
+    /// the bin's own beams all had no return (a silhouette against nothing);
+    /// its σ is the largest of the beams involved.
+    fn build_surfaces(&mut self) {
+        let (na, ne) = (self.azimuth.count, self.elevation.count);
+        let own: Vec<Option<Beam>> = (0..na * ne)
+            .map(|bin| {
+                let beams = &self.beams[self.offsets[bin] as usize..self.offsets[bin + 1] as usize];
+                beams.iter().copied().reduce(|best, b| {
+                    let sigma = best.sigma.max(b.sigma);
+                    let sigma_origin = best.sigma_origin.max(b.sigma_origin);
+                    let nearest = if b.range < best.range { b } else { best };
+                    Beam {
+                        sigma,
+                        sigma_origin,
+                        ..nearest
+                    }
+                })
+            })
+            .collect();
+        self.surfaces = (0..na * ne)
+            .map(|bin| {
+                let mut surface = own[bin]?;
+                let base = surface.range;
+                let (a, e) = ((bin / ne) as isize, (bin % ne) as isize);
+                for (da, de) in [
+                    (-1, -1),
+                    (-1, 0),
+                    (-1, 1),
+                    (0, -1),
+                    (0, 1),
+                    (1, -1),
+                    (1, 0),
+                    (1, 1),
+                ] {
+                    let (x, y) = (a + da, e + de);
+                    if x < 0 || y < 0 || x >= na as isize || y >= ne as isize {
+                        continue;
+                    }
+                    let Some(other) = own[x as usize * ne + y as usize] else {
+                        continue;
+                    };
+                    let bound = if base.is_finite() {
+                        0.5 * (base + other.range)
+                    } else {
+                        other.range
+                    };
+                    if bound < surface.range {
+                        surface.range = bound;
+                        surface.sigma = surface.sigma.max(other.sigma);
+                    }
+                }
+                Some(surface)
+            })
+            .collect();
+    }
+
     fn build_pyramid(&mut self) {
         let mut dims = [self.azimuth.count, self.elevation.count];
         let mut cells = Vec::with_capacity(dims[0] * dims[1]);
@@ -254,6 +328,9 @@ impl LocalGrid {
                     s.near = s.near.min(b.band_start(self.max_range));
                     s.far = s.far.max(b.reach(self.max_range));
                     s.origin = s.origin.max(TAIL * b.sigma_origin);
+                }
+                if let Some(surface) = self.bin_surface(a, e) {
+                    s.near = s.near.min(surface.band_start(self.max_range));
                 }
                 s.filled = u32::from(!beams.is_empty());
                 s.bins = 1;

@@ -165,3 +165,80 @@ fn ray_box_chords_agree_with_sampling() {
     }
     assert!(crossings > 500, "{crossings}");
 }
+
+#[test]
+fn a_viewpoint_calls_a_cell_free_only_for_the_share_it_sees_free() {
+    let model = CellModel::default();
+    // Nothing seen in front of the surface, no surface inside: the prior.
+    assert_eq!(model.view_occupancy(0.0, 0.0), 0.5);
+    // All of the cell seen free: as free as the model allows.
+    assert_eq!(model.view_occupancy(0.0, 1.0), 0.02);
+    // A surface surely inside wins whatever the rest says.
+    assert_eq!(model.view_occupancy(1.0, 1.0), 0.98);
+    // Half the cell seen free: one surface point uniformly placed in the
+    // other half, prior ½ — (1 − F) / (2 − F) = 1/3.
+    assert!((model.view_occupancy(0.0, 0.5) - 1.0 / 3.0).abs() < 1e-12);
+    // H and F combine as "inside, or else somewhere in the unseen rest".
+    let (h, f) = (0.3, 0.8);
+    let expected = h + (1.0 - h) * (1.0 - f) / (2.0 - f);
+    assert!((model.view_occupancy(h, f) - expected).abs() < 1e-12);
+    // The risk level: silent (½) unless at least 1 − ε of the cell is seen.
+    let strict = CellModel::with_risk(Some(0.05));
+    assert_eq!(strict.view_occupancy(0.0, 0.9), 0.5);
+    assert_eq!(
+        strict.view_occupancy(0.0, 0.96),
+        model.view_occupancy(0.0, 0.96)
+    );
+    assert_eq!(
+        CellModel::with_risk(Some(0.2)).view_occupancy(0.0, 0.9),
+        model.view_occupancy(0.0, 0.9)
+    );
+}
+
+#[test]
+fn split_and_free_at_are_the_first_hit_probabilities() {
+    let model = CellModel::default();
+    let beam = Beam {
+        direction: Vector3::z(),
+        range: 1.0,
+        sigma: 0.01,
+        sigma_origin: 0.0,
+    };
+    for (a, b) in [
+        (0.98, 0.99),
+        (0.995, 1.005),
+        (1.0, 1.02),
+        (0.9, 0.95),
+        (1.05, 1.2),
+    ] {
+        let (before, inside, after) = model.split(&beam, a, b, 2.0);
+        assert!((before + inside + after - 1.0).abs() < 1e-12);
+        assert!((before - normal_cdf((a - 1.0) / 0.01)).abs() < 1e-12);
+        assert!((after - normal_cdf((1.0 - b) / 0.01)).abs() < 1e-12);
+        // The single-beam chord posterior is built from the same three parts.
+        let p = before * 0.5 + inside + after * 0.02;
+        if let Some(q) = model.occupancy(&beam, a, b, 2.0) {
+            assert!(
+                (q - p.clamp(0.02, 0.98)).abs() < 1e-12,
+                "{a} {b}: {q} vs {p}"
+            );
+        }
+    }
+    // A point is free with the probability the surface lies beyond it...
+    assert!((model.free_at(&beam, 0.99, 2.0) - normal_cdf(1.0)).abs() < 1e-12);
+    // ...and not at all when that misses the risk level.
+    assert_eq!(
+        CellModel::with_risk(Some(0.05)).free_at(&beam, 0.99, 2.0),
+        0.0
+    );
+    assert!(
+        (CellModel::with_risk(Some(0.2)).free_at(&beam, 0.99, 2.0) - normal_cdf(1.0)).abs() < 1e-12
+    );
+    // A no-return beam frees every point within the maximum range.
+    let miss = Beam {
+        range: f64::INFINITY,
+        ..beam
+    };
+    assert_eq!(model.free_at(&miss, 1.9, 2.0), 1.0);
+    assert_eq!(model.free_at(&miss, 2.1, 2.0), 0.0);
+}

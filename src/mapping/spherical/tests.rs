@@ -62,6 +62,9 @@ fn box_queries_bound_the_beams_they_cover() {
                     far = far.max(b.reach(grid.max_range));
                     origin = origin.max(TAIL * b.sigma_origin);
                 }
+                if let Some(surface) = grid.bin_surface(aa, ee) {
+                    near = near.min(surface.band_start(grid.max_range));
+                }
             }
         }
         let bins = ((a.1 - a.0 + 1) * (e.1 - e.0 + 1)) as u32;
@@ -97,4 +100,48 @@ fn beams_land_in_their_bins_in_input_order() {
         }
     }
     assert_eq!(total, grid.beam_count());
+}
+
+#[test]
+fn a_bins_surface_is_the_nearest_the_surface_comes_within_it() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let grid = random_grid(&mut rng);
+    let (na, ne) = (grid.azimuth.count, grid.elevation.count);
+    let nearest = |a: usize, e: usize| {
+        grid.bin_beams(a, e)
+            .0
+            .iter()
+            .map(|b| b.range)
+            .reduce(f64::min)
+    };
+    let mut pulled = 0;
+    for a in 0..na {
+        for e in 0..ne {
+            let Some(own) = nearest(a, e) else {
+                assert!(grid.bin_surface(a, e).is_none());
+                continue;
+            };
+            let mut expected = own;
+            for x in a.saturating_sub(1)..=(a + 1).min(na - 1) {
+                for y in e.saturating_sub(1)..=(e + 1).min(ne - 1) {
+                    if let Some(other) = nearest(x, y) {
+                        // Half-way to a nearer neighbour; all the way when the
+                        // bin's own beams had no return.
+                        let bound = if own.is_finite() {
+                            0.5 * (own + other)
+                        } else {
+                            other
+                        };
+                        expected = expected.min(bound);
+                    }
+                }
+            }
+            let surface = grid.bin_surface(a, e).expect("a filled bin has a surface");
+            assert_eq!(surface.range, expected, "bin ({a}, {e})");
+            let beams = grid.bin_beams(a, e).0;
+            assert!(beams.iter().all(|b| surface.sigma >= b.sigma));
+            pulled += usize::from(expected < own);
+        }
+    }
+    assert!(pulled > 10, "{pulled}");
 }

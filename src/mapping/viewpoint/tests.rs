@@ -272,3 +272,80 @@ fn ball_bins_are_a_superset() {
         }
     }
 }
+
+#[test]
+fn a_grazing_view_never_certifies_a_cell_row_holding_a_sliver_of_solid() {
+    // The plane z = 0.0207 (solid below) seen at grazing incidence from
+    // 0.6 m away and 0.1 m up, 0.5° beams: hits land centimetres apart, so
+    // most cells of the row [0.02, 0.03) hold 0.7 mm of solid that no beam
+    // hits, under beams that cross their free top. A cell is free only when
+    // its whole volume is seen in front of the surface (§5.4): with the risk
+    // level ε = 0.05 no cell of that row is called free, while the rows
+    // above are.
+    let origin = Vector3::new(-0.6, 0.0, 0.12);
+    let boresight = (Vector3::new(0.0, 0.0, 0.0207) - origin).normalize();
+    let right = boresight.cross(&Vector3::z()).normalize();
+    let down = boresight.cross(&right);
+    let scene_from_camera = Matrix3::from_columns(&[right, down, boresight]);
+    let (h, v) = (angles(30.0, 0.5), angles(10.0, 0.5));
+    let top = 0.0207;
+    let mut beams = Vec::new();
+    for &vv in &v {
+        for &hh in &h {
+            let d = scene_from_camera
+                * Vector3::new(vv.cos() * hh.sin(), vv.sin(), vv.cos() * hh.cos());
+            beams.push(if d.z < 0.0 {
+                BeamEnd::Hit {
+                    point: origin + d * ((top - origin.z) / d.z),
+                    covariance: Matrix3::identity() * 1e-6,
+                }
+            } else {
+                BeamEnd::Miss { direction: d }
+            });
+        }
+    }
+    let raster = Raster {
+        horizontal: &h,
+        vertical: &v,
+    };
+    let grid = local_grid(
+        &origin,
+        &Matrix3::zeros(),
+        &scene_from_camera,
+        raster,
+        &beams,
+        2.0,
+    );
+    let mut tree = Octree::new(0.01);
+    let options = MergeOptions {
+        model: CellModel::with_risk(Some(0.05)),
+        ..MergeOptions::default()
+    };
+    merge(&mut tree, &grid, &options);
+    let (mut sliver_seen, mut above_seen, mut above_free) = (0, 0, 0);
+    for i in -20..20 {
+        for j in -5..5 {
+            let (x, y) = (i as f64 * 0.01 + 0.005, j as f64 * 0.01 + 0.005);
+            if let Some(l) = tree.value_at(&Point3::new(x, y, 0.025)) {
+                sliver_seen += 1;
+                let c = Vector3::new(x, y, 0.025);
+                let direct = grid
+                    .ball_bins(&c, 0.005 * 3f64.sqrt())
+                    .and_then(|b| cell_occupancy(&grid, &options.model, &c, 0.005, &b));
+                assert!(
+                    l >= 0.0,
+                    "({x}, {y}): a cell holding solid called free ({l}), direct {direct:?}"
+                );
+            }
+            if let Some(l) = tree.value_at(&Point3::new(x, y, 0.045)) {
+                above_seen += 1;
+                above_free += usize::from(l < 0.0);
+            }
+        }
+    }
+    assert!(sliver_seen > 100, "{sliver_seen}");
+    assert!(
+        above_free * 10 >= above_seen * 9 && above_seen > 100,
+        "{above_free}/{above_seen}"
+    );
+}
