@@ -26,6 +26,22 @@ fn mean<'a>(
         .find(|s| s.cell == cell && s.method == method.as_str() && s.metric == metric)
 }
 
+/// The series called `name`, appended empty if there is none yet.
+fn series_named(series: &mut Vec<Series>, name: String) -> &mut Series {
+    let index = match series.iter().position(|s| s.name == name) {
+        Some(i) => i,
+        None => {
+            series.push(Series {
+                name,
+                points: Vec::new(),
+                intervals: Vec::new(),
+            });
+            series.len() - 1
+        }
+    };
+    &mut series[index]
+}
+
 /// `scores.svg`: F1, false-free rate, Brier and ANEES against the first sweep
 /// axis, one line per method (and value of the other axes), 95% intervals;
 /// and `score_<metric>.svg` beside it for every metric of `summary.csv`.
@@ -82,20 +98,10 @@ pub fn plot_scores(
                     continue;
                 }
                 let x = x_of(&cell[0].1);
-                let index = match out.iter().position(|s| s.name == name) {
-                    Some(i) => i,
-                    None => {
-                        out.push(Series {
-                            name,
-                            points: Vec::new(),
-                            intervals: Vec::new(),
-                        });
-                        out.len() - 1
-                    }
-                };
-                out[index].points.push((x, row.mean));
+                let series = series_named(&mut out, name);
+                series.points.push((x, row.mean));
                 if row.ci95_low.is_finite() {
-                    out[index].intervals.push((x, row.ci95_low, row.ci95_high));
+                    series.intervals.push((x, row.ci95_low, row.ci95_high));
                 }
             }
         }
@@ -184,22 +190,11 @@ pub fn plot_safety(
             if !(precision.mean.is_finite() && false_free.mean.is_finite()) {
                 continue;
             }
-            let index = match series.iter().position(|s| s.name == name) {
-                Some(i) => i,
-                None => {
-                    series.push(Series {
-                        name,
-                        points: Vec::new(),
-                        intervals: Vec::new(),
-                    });
-                    series.len() - 1
-                }
-            };
+            let line = series_named(&mut series, name);
             let x = precision.mean;
-            series[index].points.push((x, false_free.mean));
+            line.points.push((x, false_free.mean));
             if false_free.ci95_low.is_finite() {
-                series[index]
-                    .intervals
+                line.intervals
                     .push((x, false_free.ci95_low, false_free.ci95_high));
             }
         }

@@ -112,11 +112,12 @@ impl CellModel {
         if a > beam.reach(max_range) || (!beam.range.is_finite() && a >= max_range) {
             return None;
         }
-        let chord = if beam.range.is_finite() {
-            self.chord(beam.range, beam.sigma, a, b)
-        } else {
-            self.p_lo
+        let (before, inside, after) = self.split(beam, a, b, max_range);
+        let q = match self.risk {
+            Some(eps) if after < 1.0 - eps => 0.5,
+            _ => self.p_lo,
         };
+        let chord = inside + 0.5 * before + q * after;
         let w = origin_step(0.5 * (a + b), beam.sigma_origin);
         Some(((1.0 - w) * 0.5 + w * chord).clamp(self.p_lo, self.p_hi))
     }
@@ -178,31 +179,6 @@ impl CellModel {
             _ => (1.0 - free) / (2.0 - free),
         };
         (hit + (1.0 - hit) * rest).clamp(self.p_lo, self.p_hi)
-    }
-
-    /// The first-hit posterior over the chord, before the origin step.
-    fn chord(&self, r: f64, sigma: f64, a: f64, b: f64) -> f64 {
-        let (before, after) = if sigma > 0.0 {
-            if b < r - TAIL * sigma {
-                (0.0, 1.0)
-            } else {
-                let before = if a < r - TAIL * sigma {
-                    0.0
-                } else {
-                    normal_cdf((a - r) / sigma)
-                };
-                (before, normal_cdf((r - b) / sigma))
-            }
-        } else {
-            // A hard surface: exactly one of the three events.
-            (f64::from(r < a), f64::from(r > b))
-        };
-        let inside = (1.0 - before - after).max(0.0);
-        let q = match self.risk {
-            Some(eps) if after < 1.0 - eps => 0.5,
-            _ => self.p_lo,
-        };
-        inside + 0.5 * before + q * after
     }
 }
 

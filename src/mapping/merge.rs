@@ -73,7 +73,8 @@ impl Merger<'_> {
         }
         if !bins.outside && s.filled == s.bins && bins.range.1 < s.near && bins.range.0 > s.origin {
             // Every beam crosses the whole cell well before its surface band
-            // and past the origin step: the chord model gives p_lo everywhere.
+            // (and its bin's nearest surface) and past the origin step: H = 0
+            // and F = 1 in every finest cell, so the model gives p_lo.
             let free = self.options.model.free_log_odds();
             self.tree
                 .update_region(&key, depth, free, self.options.clamp);
@@ -123,6 +124,9 @@ pub fn cell_occupancy(
     bins: &BinBox,
 ) -> Option<f64> {
     let max_range = grid.max_range;
+    let inside = |beam, a: f64, b: f64| {
+        model.split(beam, a, b, max_range).1 * origin_step(0.5 * (a + b), beam.sigma_origin)
+    };
     let mut hit = 0.0f64;
     let mut crossed = false;
     for a in bins.azimuth.0..=bins.azimuth.1 {
@@ -131,8 +135,7 @@ pub fn cell_occupancy(
             for (beam, inv) in beams.iter().zip(inverse) {
                 if let Some((t0, t1)) = ray_box(&grid.origin, inv, centre, half) {
                     crossed = true;
-                    let (_, inside, _) = model.split(beam, t0, t1, max_range);
-                    hit = hit.max(inside * origin_step(0.5 * (t0 + t1), beam.sigma_origin));
+                    hit = hit.max(inside(beam, t0, t1));
                 }
             }
         }
@@ -141,8 +144,7 @@ pub fn cell_occupancy(
         if let Some((a, e)) = grid.bin_of(centre) {
             let (lo, hi) = bins.range;
             for beam in grid.bin_beams(a, e).0 {
-                let (_, inside, _) = model.split(beam, lo, hi, max_range);
-                hit = hit.max(inside * origin_step(0.5 * (lo + hi), beam.sigma_origin));
+                hit = hit.max(inside(beam, lo, hi));
             }
         }
     }

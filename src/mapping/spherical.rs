@@ -267,16 +267,11 @@ impl LocalGrid {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
         let own: Vec<Option<Beam>> = (0..na * ne)
             .map(|bin| {
-                let beams = &self.beams[self.offsets[bin] as usize..self.offsets[bin + 1] as usize];
-                beams.iter().copied().reduce(|best, b| {
-                    let sigma = best.sigma.max(b.sigma);
-                    let sigma_origin = best.sigma_origin.max(b.sigma_origin);
-                    let nearest = if b.range < best.range { b } else { best };
-                    Beam {
-                        sigma,
-                        sigma_origin,
-                        ..nearest
-                    }
+                let (beams, _) = self.bin_beams(bin / ne, bin % ne);
+                beams.iter().copied().reduce(|best, b| Beam {
+                    sigma: best.sigma.max(b.sigma),
+                    sigma_origin: best.sigma_origin.max(b.sigma_origin),
+                    ..if b.range < best.range { b } else { best }
                 })
             })
             .collect();
@@ -284,32 +279,22 @@ impl LocalGrid {
             .map(|bin| {
                 let mut surface = own[bin]?;
                 let base = surface.range;
-                let (a, e) = ((bin / ne) as isize, (bin % ne) as isize);
-                for (da, de) in [
-                    (-1, -1),
-                    (-1, 0),
-                    (-1, 1),
-                    (0, -1),
-                    (0, 1),
-                    (1, -1),
-                    (1, 0),
-                    (1, 1),
-                ] {
-                    let (x, y) = (a + da, e + de);
-                    if x < 0 || y < 0 || x >= na as isize || y >= ne as isize {
-                        continue;
-                    }
-                    let Some(other) = own[x as usize * ne + y as usize] else {
-                        continue;
-                    };
-                    let bound = if base.is_finite() {
-                        0.5 * (base + other.range)
-                    } else {
-                        other.range
-                    };
-                    if bound < surface.range {
-                        surface.range = bound;
-                        surface.sigma = surface.sigma.max(other.sigma);
+                let (a, e) = (bin / ne, bin % ne);
+                // The 3 x 3 neighbourhood; the bin itself never lowers `base`.
+                for x in a.saturating_sub(1)..=(a + 1).min(na - 1) {
+                    for y in e.saturating_sub(1)..=(e + 1).min(ne - 1) {
+                        let Some(other) = own[x * ne + y] else {
+                            continue;
+                        };
+                        let bound = if base.is_finite() {
+                            0.5 * (base + other.range)
+                        } else {
+                            other.range
+                        };
+                        if bound < surface.range {
+                            surface.range = bound;
+                            surface.sigma = surface.sigma.max(other.sigma);
+                        }
                     }
                 }
                 Some(surface)
