@@ -36,31 +36,28 @@ fn bench(c: &mut Criterion) {
         group.bench_function(method.as_str(), |b| {
             b.iter(|| {
                 pool.install(|| {
-                    black_box(build_map(
-                        &experiment,
-                        &run,
-                        method,
-                        RESOLUTION,
-                        &Vector3::zeros(),
-                    ))
+                    black_box(
+                        build_map(&experiment, &run, method, RESOLUTION, &Vector3::zeros())
+                            .expect("the quickstart maps"),
+                    )
                 })
             })
         });
     }
     group.finish();
 
-    let seconds =
-        |method| {
-            let start = Instant::now();
-            let mut reps = 0;
-            while reps < 3 || start.elapsed() < Duration::from_secs(1) {
-                black_box(pool.install(|| {
-                    build_map(&experiment, &run, method, RESOLUTION, &Vector3::zeros())
-                }));
-                reps += 1;
-            }
-            start.elapsed().as_secs_f64() / reps as f64
-        };
+    let seconds = |method| {
+        let start = Instant::now();
+        let mut reps = 0;
+        while reps < 3 || start.elapsed() < Duration::from_secs(1) {
+            black_box(pool.install(|| {
+                build_map(&experiment, &run, method, RESOLUTION, &Vector3::zeros())
+                    .expect("the quickstart maps")
+            }));
+            reps += 1;
+        }
+        start.elapsed().as_secs_f64() / reps as f64
+    };
     let baseline = seconds(Method::RayUpdate);
     println!("\ninsertion of {beams} beams at {RESOLUTION} m, one core (ratio: beams/s against the ray update):");
     for method in Method::ALL {
@@ -69,7 +66,9 @@ fn bench(c: &mut Criterion) {
         } else {
             seconds(method)
         };
-        let stats = build_map(&experiment, &run, method, RESOLUTION, &Vector3::zeros()).stats();
+        let stats = build_map(&experiment, &run, method, RESOLUTION, &Vector3::zeros())
+            .expect("the quickstart maps")
+            .stats();
         println!(
             "  {:<11} {:6.3} M beams/s  {:5.2}x   {:5.1} bytes/leaf (OctoMap's layout: {:5.1})",
             method.as_str(),

@@ -8,12 +8,14 @@
 //!
 //! Modules by concept: [`geometry`] (poses), [`uncertainty`] (uncertain
 //! transforms and covariances), [`sim`] (scene, robot, scanner, truth draw),
-//! [`experiment`] (configuration, runs, files), [`cli`] (the `sigmap` command).
+//! [`experiment`] (configuration, runs, files), [`files`] (staged output that
+//! never deletes what sigmap did not write), [`cli`] (the `sigmap` command).
 
 pub mod cli;
 pub mod error;
 pub mod eval;
 pub mod experiment;
+pub mod files;
 pub mod geometry;
 pub mod mapping;
 pub mod plot;

@@ -5,6 +5,8 @@
 mod common;
 
 use common::{sigmap, sigmap_ok};
+use sigmap::experiment::journal::journal_record;
+use sigmap::experiment::runner::RunRow;
 
 fn run(out: &std::path::Path, extra: &[&str]) {
     let mut args = vec![
@@ -57,21 +59,35 @@ fn results_do_not_depend_on_threads_and_survive_interruption() {
     assert!(std::fs::read_to_string(one.join("slice.svg"))
         .unwrap()
         .contains("false-free"));
-    // An interrupted run: only the first seed's rows reached the journal,
-    // the last one cut mid-line. The re-run completes the rest.
+    // An interrupted run: the first seed's record reached the journal whole
+    // (with a marked F1, to see that it is reused, not recomputed), the
+    // second seed's was cut mid-record. The re-run keeps the first and
+    // recomputes the second and third.
     let runs = String::from_utf8(read(&one.join("runs.csv"))).unwrap();
     let lines: Vec<&str> = runs.lines().collect();
-    let journal = format!(
-        "{}\n{}\n{}\n{}",
-        lines[1],
-        lines[2],
-        lines[3],
-        &lines[4][..20]
-    );
+    let rows = |from: usize| -> Vec<RunRow> {
+        csv::ReaderBuilder::new()
+            .has_headers(false)
+            .from_reader(lines[from..from + 3].join("\n").as_bytes())
+            .deserialize()
+            .map(|r| r.unwrap())
+            .collect()
+    };
+    let mut first = rows(1);
+    first[0].f1 = 0.123456;
+    let second = journal_record(&rows(4)).unwrap();
+    let mut journal = journal_record(&first).unwrap();
+    journal.extend_from_slice(&second[..second.len() - 5]);
     let resumed = dir.path().join("resumed");
     std::fs::create_dir_all(&resumed).unwrap();
     std::fs::write(resumed.join("runs.journal.csv"), journal).unwrap();
     run(&resumed, &[]);
+    let got = String::from_utf8(read(&resumed.join("runs.csv"))).unwrap();
+    assert!(got.contains("0.123456"), "the whole record is reused");
+    assert_eq!(got.lines().count(), lines.len());
+    assert_eq!(got.lines().skip(2).collect::<Vec<_>>(), lines[2..].to_vec());
+    // With --fresh everything is recomputed.
+    run(&resumed, &["--fresh"]);
     assert_eq!(read(&resumed.join("runs.csv")), read(&one.join("runs.csv")));
     assert!(!resumed.join("runs.journal.csv").exists());
     // A re-run with everything done changes nothing.
@@ -296,4 +312,86 @@ fn shards_merge_into_the_one_machine_result() {
     ]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("run.toml"));
+}
+
+/// Results of other inputs are never reused: editing the profile, a mesh of
+/// the scene, or the experiment and re-running into the same folder is
+/// refused (exit 2) until `--fresh`.
+#[test]
+fn a_resume_refuses_results_of_other_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = env!("CARGO_MANIFEST_DIR");
+    let profile = dir.path().join("profile.toml");
+    let mesh = dir.path().join("bunny.obj");
+    let scene = dir.path().join("scene.toml");
+    std::fs::copy(
+        format!("{root}/experiments/profiles/collaborative.toml"),
+        &profile,
+    )
+    .unwrap();
+    std::fs::copy(format!("{root}/scenes/meshes/bunny.obj"), &mesh).unwrap();
+    std::fs::write(
+        &scene,
+        std::fs::read_to_string(format!("{root}/scenes/tabletop.toml"))
+            .unwrap()
+            .replace("meshes/bunny.obj", mesh.to_str().unwrap()),
+    )
+    .unwrap();
+    let experiment = dir.path().join("e.toml");
+    let text = portable_quickstart()
+        .replace(
+            &format!("{root}/scenes/tabletop.toml"),
+            scene.to_str().unwrap(),
+        )
+        .replace(
+            &format!("{root}/experiments/profiles/collaborative.toml"),
+            profile.to_str().unwrap(),
+        )
+        .replace("seeds = [1, 2, 3]", "seeds = [1]")
+        .replace(
+            r#"methods = ["blind", "unscented", "ray_update"]"#,
+            r#"methods = ["ray_update"]"#,
+        );
+    std::fs::write(&experiment, &text).unwrap();
+    let out = dir.path().join("out");
+    let args = |extra: &[&'static str]| {
+        let mut a = vec![
+            "run".to_string(),
+            experiment.to_str().unwrap().to_string(),
+            "--out".into(),
+            out.to_str().unwrap().into(),
+            "-q".into(),
+        ];
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    let call = |extra: &[&'static str]| {
+        let a = args(extra);
+        sigmap(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    assert!(call(&[]).status.success());
+    assert!(call(&[]).status.success(), "the same inputs resume");
+    let edits: [(&std::path::Path, &str); 3] = [
+        (&profile, "\n# an edit\n"),
+        (&mesh, "\n# an edit\n"),
+        (&experiment, "\n# an edit\n"),
+    ];
+    for (file, edit) in edits {
+        let mut text = std::fs::read_to_string(file).unwrap();
+        text.push_str(edit);
+        std::fs::write(file, &text).unwrap();
+        let refused = call(&[]);
+        let stderr = String::from_utf8_lossy(&refused.stderr);
+        assert_eq!(
+            refused.status.code(),
+            Some(2),
+            "{}: {stderr}",
+            file.display()
+        );
+        assert!(
+            stderr.contains("other inputs") && stderr.contains("--fresh"),
+            "{stderr}"
+        );
+        assert!(call(&["--fresh"]).status.success());
+    }
 }

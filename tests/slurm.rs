@@ -2,7 +2,7 @@
 //! plus a dependent merge, checked byte for byte against a local run; then one
 //! task cancelled, `sigmap status` reporting the hole and `--resume` filling it
 //! with nothing lost or duplicated. `.ci/run` starts a single-node cluster
-//! (`.ci/slurm.sh`); without `sbatch` the test is skipped loudly, except in CI.
+//! (`.ci/slurm.sh`); the test is `#[ignore]`d, and `.ci/run` runs it.
 
 mod common;
 
@@ -10,20 +10,16 @@ use common::sigmap_ok;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-fn slurm_present() -> bool {
+fn require_slurm() {
     let present = Command::new("sbatch")
         .arg("--version")
         .output()
         .map(|o| o.status.success())
         .unwrap_or(false);
-    if !present {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI must provide SLURM (.ci/slurm.sh start)"
-        );
-        eprintln!("\n*** SKIPPED: no `sbatch` on PATH; start a cluster with `bash .ci/slurm.sh start` ***\n");
-    }
-    present
+    assert!(
+        present,
+        "no `sbatch` on PATH; start a cluster with `bash .ci/slurm.sh start`"
+    );
 }
 
 /// The job ids `sigmap submit` printed.
@@ -58,10 +54,9 @@ fn wait_for(ids: &[String]) {
 }
 
 #[test]
+#[ignore = "needs a SLURM controller (bash .ci/slurm.sh start); .ci/run runs it"]
 fn quickstart_on_slurm_matches_a_local_run_and_resumes() {
-    if !slurm_present() {
-        return;
-    }
+    require_slurm();
     let dir = tempfile::tempdir().unwrap();
     let local = dir.path().join("local");
     sigmap_ok(&[

@@ -46,7 +46,7 @@ fn progress(experiment: &Experiment, out: &Path, tasks: usize) -> Result<Vec<Sha
     (1..=tasks)
         .map(|shard| {
             let dir = shard_dir(out, shard);
-            let done = finished_runs(&dir)?;
+            let done = finished_runs(&dir, &experiment.methods)?;
             let expected = shard_runs(labels.len(), &experiment.seeds, shard, tasks);
             let missing = expected
                 .iter()

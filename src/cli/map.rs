@@ -46,22 +46,12 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
             resolution,
             &crate::geometry::Vector3::zeros(),
         )
-    })?;
+    })??;
     let seconds = start.elapsed().as_secs_f64();
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    let staging = out.with_extension(format!("partial-{}", std::process::id()));
-    write_octree(
-        &staging.with_extension(out.extension().unwrap_or_default()),
-        &tree,
-        Clamp::OCTOMAP,
-    )?;
-    std::fs::rename(
-        staging.with_extension(out.extension().unwrap_or_default()),
-        &out,
-    )
-    .map_err(|e| Error::io(&out, e))?;
+    write_octree(&out, &tree, Clamp::OCTOMAP)?;
     let stats = tree.stats();
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
     if !args.run.quiet {

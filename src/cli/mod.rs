@@ -51,8 +51,9 @@ enum Command {
     Opdf(OpdfArgs),
     /// Build one run's occupancy map with one method, as an OctoMap file
     ///
-    /// blind, jacobian, unscented: the paper's OPDF merge; ray_update:
-    /// OctoMap's update. Writes a .bt or .ot file.
+    /// blind, jacobian, unscented: the paper's OPDF merge; correlated: the
+    /// unscented merge with the shared pose errors accounted once;
+    /// ray_update: OctoMap's update. Writes a .bt or .ot file.
     Map(MapArgs),
     /// Write a scene's true occupancy as an OctoMap file
     ///
@@ -145,7 +146,7 @@ pub(crate) struct GroundTruthArgs {
 pub(crate) struct MapArgs {
     /// The experiment file (TOML).
     experiment: PathBuf,
-    /// blind, jacobian, unscented or ray_update.
+    /// blind, jacobian, unscented, correlated or ray_update.
     #[arg(long, default_value = "unscented")]
     method: crate::experiment::model::Method,
     /// Finest voxel edge (m) [default: the experiment's `resolution`, else 0.01].

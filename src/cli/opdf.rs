@@ -3,7 +3,7 @@
 
 use super::OpdfArgs;
 use crate::error::{Error, Result};
-use crate::experiment::write_atomically;
+use crate::files::write_folder;
 use crate::mapping::opdf::OpdfParams;
 use crate::plot::{panels, Panel, Series};
 use std::fmt::Write as _;
@@ -41,7 +41,7 @@ pub(crate) fn run(args: OpdfArgs) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("results").join("opdf"));
-    write_atomically(&out, |dir| {
+    write_folder(&out, |dir| {
         let mut csv = String::from("figure,curve,lambda,p\n");
         for (figure, series) in [("fig1", &fig1), ("fig6", &fig6)] {
             for s in series.iter() {

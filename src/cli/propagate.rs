@@ -2,7 +2,7 @@
 
 use super::PropagateArgs;
 use crate::error::{Error, Result};
-use crate::experiment::write_atomically;
+use crate::files::write_folder;
 use crate::plot::{panels, Panel, Series};
 use crate::uncertainty::compare::{compare, log_space, sweep, MethodResult, SweepRow};
 use crate::uncertainty::{read_chain_file, UncertainPoint};
@@ -100,7 +100,7 @@ fn run_sweep(
         args.samples,
         args.seed,
     );
-    write_atomically(&out, |dir| {
+    write_folder(&out, |dir| {
         write_sweep_csv(&dir.join("sweep.csv"), &rows)?;
         plot_sweep(&dir.join("sweep.svg"), &rows, args.samples)
     })?;

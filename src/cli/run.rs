@@ -3,6 +3,7 @@
 
 use super::{progress_bar, with_threads, MergeArgs, RunArgs};
 use crate::error::{Error, Result};
+use crate::experiment::journal::{fingerprint, journal_record, read_journal};
 use crate::experiment::model::Method;
 use crate::experiment::plots;
 use crate::experiment::runner::{
@@ -38,26 +39,70 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     let runs_path = out.join("runs.csv");
     let journal_path = out.join("runs.journal.csv");
     let timings_path = out.join("timings.csv");
+    let inputs = fingerprint(&cells)?;
+    let (shard, shards) = args.shard.unwrap_or((1, 1));
+    let manifest_path = out.join("run.toml");
     if args.fresh {
         for p in [&runs_path, &journal_path, &timings_path] {
             if p.exists() {
                 std::fs::remove_file(p).map_err(|e| Error::io(p, e))?;
             }
         }
+    } else if manifest_path.exists() {
+        // Never resume from results of other inputs.
+        let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
+        let same_shard = manifest.shard == format!("{shard}/{shards}");
+        if manifest.fingerprint != inputs
+            || manifest.version != env!("CARGO_PKG_VERSION")
+            || !same_shard
+        {
+            return Err(Error::input(
+                &manifest_path,
+                format!(
+                    "this folder holds results of other inputs, another sigmap or another shard \
+                     (experiment '{}', fingerprint {}, sigmap {}, shard {}; now {inputs}, {}, \
+                     {shard}/{shards}); rerun with --fresh to replace them, or choose another --out",
+                    manifest.experiment,
+                    manifest.fingerprint,
+                    manifest.version,
+                    manifest.shard,
+                    env!("CARGO_PKG_VERSION"),
+                ),
+            ));
+        }
     }
     // Finished runs: the sorted file and the journal of an interrupted run.
+    // A run counts only with a row for every method; rows of runs, methods or
+    // cells the experiment does not have are dropped, and so are repeats.
     let mut rows: Vec<RunRow> = read_rows(&runs_path)?;
     rows.extend(read_journal(&journal_path)?);
+    let methods: Vec<&str> = experiment.methods.iter().map(|m| m.as_str()).collect();
+    let mut seen = BTreeSet::new();
+    rows.retain(|r| {
+        labels.contains(&r.cell)
+            && experiment.seeds.contains(&r.seed)
+            && methods.contains(&r.method.as_str())
+            && seen.insert((r.cell.clone(), r.seed, r.method.clone()))
+    });
+    let mut per_run = std::collections::BTreeMap::<(String, u64), usize>::new();
+    for r in &rows {
+        *per_run.entry((r.cell.clone(), r.seed)).or_default() += 1;
+    }
+    let done: BTreeSet<(String, u64)> = per_run
+        .into_iter()
+        .filter(|(_, n)| *n == methods.len())
+        .map(|(run, _)| run)
+        .collect();
+    rows.retain(|r| done.contains(&(r.cell.clone(), r.seed)));
     let mut timings: Vec<TimingRow> = read_rows(&timings_path)?;
-    let done: BTreeSet<(String, u64)> = rows.iter().map(|r| (r.cell.clone(), r.seed)).collect();
-    let (shard, shards) = args.shard.unwrap_or((1, 1));
+    timings.retain(|t| done.contains(&(t.cell.clone(), t.seed)));
     let mine = shard_runs(cells.len(), &experiment.seeds, shard, shards);
     let pending: Vec<(usize, u64)> = mine
         .iter()
         .copied()
         .filter(|(c, s)| !done.contains(&(labels[*c].clone(), *s)))
         .collect();
-    write_manifest(&out, &experiment, shard, shards)?;
+    write_manifest(&out, &experiment, &inputs, shard, shards)?;
     let bar = progress_bar(pending.len(), "runs", args.run.quiet);
     let journal = Mutex::new(
         std::fs::OpenOptions::new()
@@ -98,18 +143,9 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
                         plots::slice_height(&truth),
                     )?;
                 }
-                // One write per finished run, so an interruption loses only unfinished runs.
-                let mut text = Vec::new();
-                {
-                    let mut w = csv::WriterBuilder::new()
-                        .has_headers(false)
-                        .from_writer(&mut text);
-                    for r in &new_rows {
-                        w.serialize(r)
-                            .map_err(|e| Error::io(&journal_path, e.into()))?;
-                    }
-                    w.flush().map_err(|e| Error::io(&journal_path, e))?;
-                }
+                // One record per finished run, so an interruption loses only
+                // unfinished runs; a record cut short is ignored when read.
+                let text = journal_record(&new_rows)?;
                 let mut file = journal
                     .lock()
                     .map_err(|_| Error::CheckFailed("journal lock poisoned".into()))?;
@@ -158,11 +194,23 @@ pub(crate) fn shard_runs(
 }
 
 /// The finished runs (cell label, seed) recorded in a run folder: its
-/// runs.csv and the journal of an interrupted run.
-pub(crate) fn finished_runs(dir: &Path) -> Result<BTreeSet<(String, u64)>> {
+/// runs.csv and the whole records of the journal of an interrupted run. A
+/// run is finished when it has a row for every one of `methods`.
+pub(crate) fn finished_runs(dir: &Path, methods: &[Method]) -> Result<BTreeSet<(String, u64)>> {
     let mut rows: Vec<RunRow> = read_rows(&dir.join("runs.csv"))?;
     rows.extend(read_journal(&dir.join("runs.journal.csv"))?);
-    Ok(rows.into_iter().map(|r| (r.cell, r.seed)).collect())
+    let mut per_run = std::collections::BTreeMap::<(String, u64), BTreeSet<String>>::new();
+    for r in rows {
+        per_run
+            .entry((r.cell, r.seed))
+            .or_default()
+            .insert(r.method);
+    }
+    Ok(per_run
+        .into_iter()
+        .filter(|(_, have)| methods.iter().all(|m| have.contains(m.as_str())))
+        .map(|(run, _)| run)
+        .collect())
 }
 
 /// Sorts the rows into the one order every machine agrees on (cell, seed,
@@ -210,28 +258,17 @@ fn finalize(
 
 /// FNV-1a over the bytes of every input file of the experiment: shards of
 /// different experiments (or edited inputs) do not merge.
-fn fingerprint(experiment: &Experiment) -> Result<String> {
-    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
-    for path in [
-        &experiment.source,
-        &experiment.profile.source,
-        &experiment.scene.source,
-        &experiment.robot.source,
-    ] {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        for b in bytes {
-            hash = (hash ^ b as u64).wrapping_mul(0x100_0000_01b3);
-        }
-    }
-    Ok(format!("{hash:016x}"))
-}
-
 /// `run.toml`: which experiment, inputs, version and shard produced a folder.
-fn write_manifest(out: &Path, experiment: &Experiment, shard: usize, shards: usize) -> Result<()> {
+fn write_manifest(
+    out: &Path,
+    experiment: &Experiment,
+    fingerprint: &str,
+    shard: usize,
+    shards: usize,
+) -> Result<()> {
     let text = format!(
-        "# written by sigmap run; `sigmap merge` checks it\nexperiment = \"{}\"\nfingerprint = \"{}\"\nversion = \"{}\"\nshard = \"{shard}/{shards}\"\n",
+        "# written by sigmap run; `sigmap merge` checks it\nexperiment = \"{}\"\nfingerprint = \"{fingerprint}\"\nversion = \"{}\"\nshard = \"{shard}/{shards}\"\n",
         experiment.name,
-        fingerprint(experiment)?,
         env!("CARGO_PKG_VERSION")
     );
     let path = out.join("run.toml");
@@ -254,7 +291,12 @@ pub(crate) fn merge(args: MergeArgs) -> Result<()> {
         .iter()
         .map(|c| Experiment::cell_label(c))
         .collect();
-    let expected = fingerprint(&experiment)?;
+    let cells: Vec<Experiment> = experiment
+        .cells()
+        .iter()
+        .map(|cell| Experiment::load_cell(&args.experiment, cell))
+        .collect::<Result<_>>()?;
+    let expected = fingerprint(&cells)?;
     let (mut rows, mut timings) = (Vec::new(), Vec::new());
     for dir in &args.shards {
         let manifest_path = dir.join("run.toml");
@@ -314,7 +356,7 @@ pub(crate) fn merge(args: MergeArgs) -> Result<()> {
         .unwrap_or_else(|| PathBuf::from("results").join(&experiment.name));
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     finalize(&out, &experiment, &labels, rows, timings)?;
-    write_manifest(&out, &experiment, 1, 1)?;
+    write_manifest(&out, &experiment, &expected, 1, 1)?;
     // The first run's maps and slice live in the shard that ran it.
     for dir in &args.shards {
         for entry in std::fs::read_dir(dir)
@@ -334,18 +376,6 @@ pub(crate) fn merge(args: MergeArgs) -> Result<()> {
         out.display()
     );
     Ok(())
-}
-
-fn read_journal(path: &std::path::Path) -> Result<Vec<RunRow>> {
-    if !path.exists() {
-        return Ok(Vec::new());
-    }
-    let mut reader = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .from_path(path)
-        .map_err(|e| Error::input(path, e))?;
-    // A run cut off mid-write leaves a partial last line: drop what does not parse.
-    Ok(reader.deserialize().filter_map(|r| r.ok()).collect())
 }
 
 fn print_headline(

@@ -20,7 +20,7 @@ pub(crate) fn run(args: SimulateArgs) -> Result<()> {
     })??;
     bar.finish_and_clear();
     let elapsed = start.elapsed().as_secs_f64();
-    experiment::write_atomically(&out, |dir| experiment::write_scans(dir, &experiment, &run))?;
+    crate::files::write_folder(&out, |dir| experiment::write_scans(dir, &experiment, &run))?;
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
     let hits: usize = run
         .scans

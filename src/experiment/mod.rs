@@ -1,6 +1,7 @@
 //! Experiments: the configuration schema, the simulated runs, and their files.
 
 mod config;
+pub mod journal;
 pub mod model;
 pub mod plots;
 pub mod regress;
@@ -9,7 +10,5 @@ mod scan_files;
 mod simulate;
 
 pub use config::{Experiment, SweepAxis, SweepValue, Viewpoint};
-pub use scan_files::{
-    chain_file, default_scan_dir, read_ply, write_atomically, write_ply, write_scans,
-};
+pub use scan_files::{chain_file, default_scan_dir, read_ply, write_ply, write_scans};
 pub use simulate::{simulate, RunTruth, SimulatedRun};

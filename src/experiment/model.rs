@@ -2,10 +2,12 @@
 //! modeller can do with the scans alone (the truth never enters here).
 
 use super::{Experiment, SimulatedRun};
-use crate::geometry::{Point3, Vector3};
+use crate::error::{Error, Result};
+use crate::geometry::{Matrix3, Matrix6, Point3, Vector3};
 use crate::mapping::chord::CellModel;
 use crate::mapping::merge::{merge, MergeOptions};
 use crate::mapping::ray_update::RayUpdater;
+use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::BeamEnd;
 use crate::mapping::viewpoint::{local_grid, Raster};
 use crate::mapping::Octree;
@@ -27,16 +29,21 @@ pub enum Method {
     Jacobian,
     /// OPDF merge, covariances by the unscented transform.
     Unscented,
+    /// The unscented OPDF merge with the viewpoints fused on their own
+    /// (arm) error only, and the shared errors (T_sw, T_cr, one draw per run)
+    /// accounted once on the fused map (docs/math.md §6.6).
+    Correlated,
     /// OctoMap's ray update (hit/miss log-odds), the baseline most users run.
     RayUpdate,
 }
 
 impl Method {
     /// Every method.
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 5] = [
         Method::Blind,
         Method::Jacobian,
         Method::Unscented,
+        Method::Correlated,
         Method::RayUpdate,
     ];
 
@@ -46,6 +53,7 @@ impl Method {
             Method::Blind => "blind",
             Method::Jacobian => "jacobian",
             Method::Unscented => "unscented",
+            Method::Correlated => "correlated",
             Method::RayUpdate => "ray_update",
         }
     }
@@ -64,20 +72,41 @@ impl FromStr for Method {
             .into_iter()
             .find(|m| m.as_str() == s)
             .ok_or_else(|| {
-                format!("unknown method '{s}' (use blind, jacobian, unscented or ray_update)")
+                format!(
+                    "unknown method '{s}' (use blind, jacobian, unscented, correlated or ray_update)"
+                )
             })
     }
 }
 
-/// The propagator of an OPDF method for one viewpoint's chain; `None` for
-/// the ray update, which propagates nothing.
+/// The propagator of an OPDF method for one viewpoint's chain: the
+/// per-point marginal (for `correlated`, the full covariance, as its
+/// consistency is checked); `None` for the ray update, which propagates nothing.
 pub fn propagator(method: Method, chain: &UncertainChain) -> Option<Box<dyn Propagator>> {
     match method {
         Method::Blind => Some(Box::new(BlindPropagator::new(chain))),
         Method::Jacobian => Some(Box::new(JacobianPropagator::new(chain))),
-        Method::Unscented => Some(Box::new(UnscentedPropagator::new(chain, SigmaSet::Paper))),
+        Method::Unscented | Method::Correlated => {
+            Some(Box::new(UnscentedPropagator::new(chain, SigmaSet::Paper)))
+        }
         Method::RayUpdate => None,
     }
+}
+
+/// The links drawn once per run (scene registration, hand-eye): shared by
+/// every viewpoint of a run (docs/math.md §6.6).
+const SHARED_LINKS: [&str; 2] = ["world_from_scene", "robot_from_camera"];
+
+/// `chain` with only the shared links uncertain (`shared`) or only the
+/// others (`!shared`).
+pub fn split_chain(chain: &UncertainChain, shared: bool) -> UncertainChain {
+    let mut out = chain.clone();
+    for link in &mut out.links {
+        if SHARED_LINKS.contains(&link.name.as_str()) != shared {
+            link.pose.covariance = Matrix6::zeros();
+        }
+    }
+    out
 }
 
 /// The chain of a scan as the modeller believes it.
@@ -151,13 +180,15 @@ pub fn beam_ends_with_truth(
 
 /// Builds the map of a run at `resolution` with `method`, in the map frame
 /// `map = scene + offset` (zero: the scene frame; see `Experiment::map_offset`).
+/// Fails only when the `correlated` method's shared-motion step would not
+/// fit in memory at this resolution.
 pub fn build_map(
     experiment: &Experiment,
     run: &SimulatedRun,
     method: Method,
     resolution: f64,
     offset: &Vector3,
-) -> Octree {
+) -> Result<Octree> {
     let mut tree = Octree::new(resolution);
     let raster = Raster {
         horizontal: &experiment.scanner.horizontal_angles,
@@ -170,7 +201,12 @@ pub fn build_map(
     };
     let mut updater = RayUpdater::default();
     for scan in &run.scans {
-        let chain = scan_chain(scan);
+        let full_chain = scan_chain(scan);
+        let chain = if method == Method::Correlated {
+            split_chain(&full_chain, false)
+        } else {
+            full_chain
+        };
         let Some(propagator) = propagator(method, &chain) else {
             let (mut origin, mut hits, misses) = ray_inputs(experiment, scan);
             origin += offset;
@@ -196,8 +232,43 @@ pub fn build_map(
         );
         merge(&mut tree, &grid, &options);
     }
+    if method == Method::Correlated {
+        let covariance_at = shared_covariance(run, offset);
+        expect_over_shared_motion(&mut tree, &covariance_at, options.clamp)
+            .map_err(|e| Error::Usage(format!("method correlated: {e}")))?;
+    }
     tree.shrink_to_fit();
-    tree
+    Ok(tree)
+}
+
+/// `Σ(x)`: the covariance of the displacement of map point `x` by the
+/// shared pose errors, the mean over the run's viewpoints of
+/// `J_shared Γ_shared J_sharedᵀ` (first order; docs/math.md §6.6).
+fn shared_covariance(run: &SimulatedRun, offset: &Vector3) -> impl Fn(&Point3) -> Matrix3 + Sync {
+    let views: Vec<_> = run
+        .scans
+        .iter()
+        .map(|scan| {
+            let chain = split_chain(&scan_chain(scan), true);
+            let camera_from_scene = chain.nominal().inverse();
+            (camera_from_scene, JacobianPropagator::new(&chain))
+        })
+        .collect();
+    let offset = *offset;
+    move |x: &Point3| {
+        let scene = x - offset;
+        let sum = views
+            .iter()
+            .map(|(camera_from_scene, p)| {
+                p.propagate(&UncertainPoint {
+                    mean: (camera_from_scene * scene).coords,
+                    covariance: Matrix3::zeros(),
+                })
+                .covariance
+            })
+            .fold(Matrix3::zeros(), |a, b| a + b);
+        sum / views.len().max(1) as f64
+    }
 }
 
 /// The nominal origin, measured end points and no-return directions of a
@@ -215,4 +286,58 @@ pub fn ray_inputs(experiment: &Experiment, scan: &Scan) -> (Point3, Vec<Point3>,
         }
     }
     (origin, hits, misses)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Pose;
+    use crate::uncertainty::UncertainPose;
+    use std::path::Path;
+
+    #[test]
+    fn the_chain_splits_into_shared_and_per_viewpoint_links() {
+        let pose = |s: f64| {
+            UncertainPose::from_sigmas(Pose::new([0.1, 0.2, 0.3], [0.1, 0.2, 0.3]), [s; 6])
+        };
+        let chain = UncertainChain::paper(pose(0.01), pose(0.02), pose(0.03));
+        let shared = split_chain(&chain, true);
+        let own = split_chain(&chain, false);
+        for i in 0..3 {
+            assert_eq!(
+                shared.links[i].pose.covariance + own.links[i].pose.covariance,
+                chain.links[i].pose.covariance
+            );
+            assert_eq!(shared.links[i].pose.mean, chain.links[i].pose.mean);
+        }
+        // T_sw and T_cr are shared; T_rw is the viewpoint's own.
+        assert!(shared.links[0].pose.covariance[(0, 0)] > 0.0);
+        assert!(shared.links[1].pose.is_exact());
+        assert!(shared.links[2].pose.covariance[(0, 0)] > 0.0);
+        assert!(own.links[1].pose.covariance[(0, 0)] > 0.0);
+    }
+
+    #[test]
+    fn without_shared_error_the_correlated_map_is_the_unscented_map() {
+        let path = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/experiments/quickstart.toml"
+        ));
+        let mut experiment = Experiment::load(path).unwrap();
+        let offset = Vector3::zeros();
+        let maps = |experiment: &Experiment| {
+            let run = super::super::simulate(experiment, 1, |_| {}).unwrap();
+            let map = |m| build_map(experiment, &run, m, 0.02, &offset).unwrap();
+            (map(Method::Unscented), map(Method::Correlated))
+        };
+        let (unscented, correlated) = maps(&experiment);
+        assert_ne!(
+            unscented, correlated,
+            "the shared error is accounted differently"
+        );
+        experiment.profile.world_from_scene = Matrix6::zeros();
+        experiment.profile.robot_from_camera = Matrix6::zeros();
+        let (unscented, correlated) = maps(&experiment);
+        assert_eq!(unscented, correlated);
+    }
 }

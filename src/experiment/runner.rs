@@ -8,7 +8,7 @@ use crate::eval::ground_truth::voxelise_at;
 use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
 use crate::mapping::Octree;
-use crate::uncertainty::consistency::ConsistencyReport;
+use crate::uncertainty::consistency::{nees, ConsistencyReport};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -56,6 +56,10 @@ pub struct RunRow {
     pub anees_low: f64,
     /// Upper end of that band.
     pub anees_high: f64,
+    /// NEES of one point of the run (the first hit of the first viewpoint):
+    /// independent across seeds, so its mean over N seeds has the χ²₃ₙ/N
+    /// band that the run's ANEES does not (docs/math.md §6.6).
+    pub nees_point: f64,
     /// Share of true points inside the 1, 2, 3 sigma ellipsoids.
     pub coverage_1sigma: f64,
     /// See `coverage_1sigma`.
@@ -110,21 +114,21 @@ pub fn run_seed(
     let (mut rows, mut timings, mut maps) = (Vec::new(), Vec::new(), Vec::new());
     for &method in &experiment.methods {
         let start = Instant::now();
-        let map = build_map(experiment, &run, method, experiment.resolution, &offset);
+        let map = build_map(experiment, &run, method, experiment.resolution, &offset)?;
         let model_s = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let s: MapScores = score_map(&map, truth, &observable);
         // Propagated points against the true surface points. Points of one
         // viewpoint share its pose error: the χ² bounds do not apply here.
-        let consistency = {
-            let mut pairs = Vec::new();
-            for scan in &run.scans {
-                if let Some(p) = propagator(method, &scan_chain(scan)) {
-                    pairs.extend(beam_ends_with_truth(experiment, scan, p.as_ref()));
-                }
+        let mut pairs = Vec::new();
+        for scan in &run.scans {
+            if let Some(p) = propagator(method, &scan_chain(scan)) {
+                pairs.extend(beam_ends_with_truth(experiment, scan, p.as_ref()));
             }
-            (!pairs.is_empty()).then(|| ConsistencyReport::new(pairs.iter().map(|(e, c)| (*e, c))))
-        };
+        }
+        let consistency =
+            (!pairs.is_empty()).then(|| ConsistencyReport::new(pairs.iter().map(|(e, c)| (*e, c))));
+        let nees_point = pairs.first().map_or(f64::NAN, |(e, c)| nees(e, c));
         let score_s = start.elapsed().as_secs_f64();
         let stats = map.stats();
         let c = |f: fn(&ConsistencyReport) -> f64| consistency.as_ref().map_or(f64::NAN, f);
@@ -150,6 +154,7 @@ pub fn run_seed(
             anees: c(|r| r.anees),
             anees_low: c(|r| r.bounds.0),
             anees_high: c(|r| r.bounds.1),
+            nees_point,
             coverage_1sigma: c(|r| r.coverage[0]),
             coverage_2sigma: c(|r| r.coverage[1]),
             coverage_3sigma: c(|r| r.coverage[2]),
@@ -170,7 +175,7 @@ pub fn run_seed(
 }
 
 /// The metrics summarised in `summary.csv`.
-pub const SUMMARY_METRICS: [&str; 15] = [
+pub const SUMMARY_METRICS: [&str; 16] = [
     "precision",
     "recall",
     "f1",
@@ -183,6 +188,7 @@ pub const SUMMARY_METRICS: [&str; 15] = [
     "log_loss",
     "roc_auc",
     "anees",
+    "nees_point",
     "coverage_1sigma",
     "coverage_2sigma",
     "coverage_3sigma",
@@ -202,6 +208,7 @@ fn metric(row: &RunRow, name: &str) -> f64 {
         "log_loss" => row.log_loss,
         "roc_auc" => row.roc_auc,
         "anees" => row.anees,
+        "nees_point" => row.nees_point,
         "coverage_1sigma" => row.coverage_1sigma,
         "coverage_2sigma" => row.coverage_2sigma,
         "coverage_3sigma" => row.coverage_3sigma,

@@ -7,6 +7,7 @@ pub mod octomap_io;
 pub mod octree;
 pub mod opdf;
 pub mod ray_update;
+pub mod shared_motion;
 pub mod spherical;
 pub mod viewpoint;
 

@@ -3,7 +3,7 @@
 
 use super::octree::{Clamp, Octree};
 use crate::error::{Error, Result};
-use std::io::{BufRead, Read, Write};
+use std::io::{BufRead, Read};
 use std::path::Path;
 
 const OT_HEADER: &str = "# Octomap OcTree file";
@@ -118,8 +118,7 @@ pub fn write_octree(path: &Path, tree: &Octree, clamp: Clamp) -> Result<()> {
         Some("bt") => to_bt(tree, clamp),
         _ => return Err(Error::input(path, "an octree file must end in .bt or .ot")),
     };
-    let mut file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-    file.write_all(&bytes).map_err(|e| Error::io(path, e))
+    crate::files::write_file(path, &bytes)
 }
 
 /// Reads a `.ot` or `.bt` file (by its first line). `.bt` leaves take the

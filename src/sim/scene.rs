@@ -102,6 +102,8 @@ pub struct Scene {
     pub description: String,
     /// The region the map covers (and the ground truth voxelises).
     pub workspace: Bounds,
+    /// Every file the scene was read from: the scene file, then its meshes.
+    pub inputs: Vec<PathBuf>,
     objects: Vec<SceneObject>,
     bvh: Bvh,
 }
@@ -300,7 +302,11 @@ impl Scene {
             return Err(bad("the scene has no [[object]]".into()));
         }
         let mut objects = Vec::with_capacity(file.objects.len());
+        let mut inputs = vec![path.to_path_buf()];
         for (index, spec) in file.objects.iter().enumerate() {
+            if let (Some(mesh), "mesh") = (&spec.file, spec.shape.as_str()) {
+                inputs.push(path.parent().unwrap_or(Path::new(".")).join(mesh));
+            }
             let name = spec
                 .name
                 .clone()
@@ -341,6 +347,7 @@ impl Scene {
             source: path.to_path_buf(),
             description: file.description,
             workspace,
+            inputs,
             objects,
             bvh,
         })

@@ -1,0 +1,152 @@
+//! What makes a resumed run trustworthy: the journal of finished runs, whose
+//! records are either whole or ignored, and the fingerprint of every input a
+//! run read, so that results of other inputs are never reused.
+
+use super::runner::RunRow;
+use super::Experiment;
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// FNV-1a, 64 bits: a stable hash (the same on every machine and version).
+fn fnv(hash: u64, bytes: &[u8]) -> u64 {
+    bytes
+        .iter()
+        .fold(hash, |h, b| (h ^ *b as u64).wrapping_mul(0x100_0000_01b3))
+}
+
+const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// A fingerprint of everything the runs of `cells` (one loaded experiment per
+/// sweep cell) read: each cell's sweep values, experiment, profile, scene and
+/// mesh files and robot description, and sigmap's version.
+pub fn fingerprint(cells: &[Experiment]) -> Result<String> {
+    let mut hash = fnv(FNV_OFFSET, env!("CARGO_PKG_VERSION").as_bytes());
+    for cell in cells {
+        hash = fnv(hash, Experiment::cell_label(&cell.cell).as_bytes());
+        let files = [&cell.source, &cell.profile.source, &cell.robot.source]
+            .into_iter()
+            .chain(&cell.scene.inputs);
+        for path in files {
+            let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+            hash = fnv(hash, path.to_string_lossy().as_bytes());
+            hash = fnv(hash, &(bytes.len() as u64).to_le_bytes());
+            hash = fnv(hash, &bytes);
+        }
+    }
+    Ok(format!("{hash:016x}"))
+}
+
+/// The journal record of one finished run: its rows as CSV lines, then
+/// `#end <rows> <hash>`. A record cut short (a kill, a full disk) has no end
+/// line or a hash that does not match, and is ignored when read.
+pub fn journal_record(rows: &[RunRow]) -> Result<Vec<u8>> {
+    let mut text = Vec::new();
+    {
+        let mut w = csv::WriterBuilder::new()
+            .has_headers(false)
+            .from_writer(&mut text);
+        for r in rows {
+            w.serialize(r)
+                .map_err(|e| Error::CheckFailed(format!("cannot write a journal row: {e}")))?;
+        }
+        w.flush()
+            .map_err(|e| Error::CheckFailed(format!("cannot write a journal row: {e}")))?;
+    }
+    let end = format!("#end {} {:016x}\n", rows.len(), fnv(FNV_OFFSET, &text));
+    text.extend_from_slice(end.as_bytes());
+    Ok(text)
+}
+
+/// The rows of every whole record of a journal (none if it does not exist).
+pub fn read_journal(path: &Path) -> Result<Vec<RunRow>> {
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(Error::io(path, e)),
+    };
+    let mut rows = Vec::new();
+    let mut start = 0;
+    let mut line_start = 0;
+    while line_start < bytes.len() {
+        let Some(len) = bytes[line_start..].iter().position(|b| *b == b'\n') else {
+            break; // a last line without its newline: cut short
+        };
+        let line = &bytes[line_start..line_start + len];
+        let next = line_start + len + 1;
+        if let Some(end) = line.strip_prefix(b"#end ") {
+            let record = &bytes[start..line_start];
+            if let Some(parsed) = parse_record(record, end) {
+                rows.extend(parsed);
+            }
+            start = next;
+        }
+        line_start = next;
+    }
+    Ok(rows)
+}
+
+/// The rows of one record if its end line `<rows> <hash>` vouches for it.
+fn parse_record(record: &[u8], end: &[u8]) -> Option<Vec<RunRow>> {
+    let end = std::str::from_utf8(end).ok()?;
+    let (count, hash) = end.trim().split_once(' ')?;
+    let count: usize = count.parse().ok()?;
+    if u64::from_str_radix(hash, 16).ok()? != fnv(FNV_OFFSET, record) {
+        return None;
+    }
+    let rows: Vec<RunRow> = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .from_reader(record)
+        .deserialize()
+        .collect::<std::result::Result<_, _>>()
+        .ok()?;
+    (rows.len() == count).then_some(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(seed: u64, method: &str, f1: f64) -> RunRow {
+        let mut r: RunRow = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .from_reader(
+                "c,1,m,0.01,10,5,0.5,0.5,0.5,0.5,0.1,0.1,0.1,0.1,0.1,0.1,0.9,3,2.9,3.1,3,0.2,0.7,0.97,10,100\n"
+                    .as_bytes(),
+            )
+            .deserialize()
+            .next()
+            .unwrap()
+            .unwrap();
+        r.seed = seed;
+        r.method = method.into();
+        r.f1 = f1;
+        r
+    }
+
+    #[test]
+    fn a_record_cut_anywhere_is_dropped_whole_and_the_others_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("runs.journal.csv");
+        let first = journal_record(&[row(1, "a", 0.1234567), row(1, "b", 0.5)]).unwrap();
+        let second = journal_record(&[row(2, "a", 0.7654321), row(2, "b", 0.25)]).unwrap();
+        let whole = [first.clone(), second.clone()].concat();
+        std::fs::write(&path, &whole).unwrap();
+        assert_eq!(read_journal(&path).unwrap().len(), 4);
+        // Every cut inside the second record keeps exactly the first one.
+        for cut in first.len()..whole.len() {
+            std::fs::write(&path, &whole[..cut]).unwrap();
+            let rows = read_journal(&path).unwrap();
+            assert_eq!(rows.len(), 2, "cut at byte {cut}");
+            assert!(rows.iter().all(|r| r.seed == 1));
+        }
+        // A digit changed in place (a torn sector) fails the hash.
+        let mut bad = whole.clone();
+        let at = first.len() + 30;
+        bad[at] = if bad[at] == b'9' { b'8' } else { b'9' };
+        std::fs::write(&path, &bad).unwrap();
+        assert!(read_journal(&path).unwrap().iter().all(|r| r.seed == 1));
+        assert!(read_journal(&dir.path().join("absent.csv"))
+            .unwrap()
+            .is_empty());
+    }
+}
