@@ -72,12 +72,55 @@ impl Error {
     }
 }
 
-/// Reads a whole text file, naming it on failure.
-pub fn read_text(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).map_err(|e| match e.kind() {
+/// Checks that `path` is a regular file (a symlink to one is fine) of at
+/// most `max_bytes`, before anything reads it: a device such as `/dev/zero`
+/// or a huge file is refused, not read forever.
+pub fn check_input_file(path: &Path, max_bytes: u64) -> Result<()> {
+    let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
         std::io::ErrorKind::NotFound => Error::input(path, "file not found"),
         _ => Error::io(path, e),
+    })?;
+    if !meta.is_file() {
+        return Err(Error::input(path, "is not a regular file"));
+    }
+    if meta.len() > max_bytes {
+        return Err(Error::input(
+            path,
+            format!(
+                "is {} MB; sigmap reads input files of at most {} MB",
+                meta.len() >> 20,
+                max_bytes >> 20
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Most bytes of a text input (TOML, URDF, CSV).
+pub const MAX_TEXT_BYTES: u64 = 64 << 20;
+
+/// Reads a whole text file (at most [`MAX_TEXT_BYTES`]), naming it on failure.
+pub fn read_text(path: &Path) -> Result<String> {
+    check_input_file(path, MAX_TEXT_BYTES)?;
+    std::fs::read_to_string(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => Error::input(path, "file not found"),
+        std::io::ErrorKind::InvalidData => Error::input(path, "is not UTF-8 text"),
+        _ => Error::io(path, e),
     })
+}
+
+/// A TOML error on one line: where, and what.
+fn toml_error(text: &str, e: &toml::de::Error) -> String {
+    let message = e.message().trim().replace('\n', " ");
+    match e.span() {
+        Some(span) => {
+            let before = &text[..span.start.min(text.len())];
+            let line = before.matches('\n').count() + 1;
+            let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+            format!("malformed TOML at line {line}, column {column}: {message}")
+        }
+        None => format!("malformed TOML: {message}"),
+    }
 }
 
 /// Parses a TOML file into `T`, naming the file and the offending line on failure.
@@ -94,14 +137,21 @@ pub fn read_toml_with<T: serde::de::DeserializeOwned>(
     overrides: &[(String, toml::Value)],
 ) -> Result<T> {
     let text = read_text(path)?;
+    if overrides.is_empty() {
+        // Straight from the text, so that errors carry their line.
+        return toml::from_str(&text).map_err(|e| Error::input(path, toml_error(&text, &e)));
+    }
     let mut value: toml::Value =
-        toml::from_str(&text).map_err(|e| Error::input(path, format!("malformed TOML: {e}")))?;
+        toml::from_str(&text).map_err(|e| Error::input(path, toml_error(&text, &e)))?;
     for (field, new) in overrides {
         set_value(&mut value, field, new).map_err(|e| Error::input(path, e))?;
     }
-    value
-        .try_into()
-        .map_err(|e| Error::input(path, format!("malformed TOML: {e}")))
+    value.try_into().map_err(|e: toml::de::Error| {
+        Error::input(
+            path,
+            format!("malformed TOML: {}", e.message().trim().replace('\n', " ")),
+        )
+    })
 }
 
 fn set_value(

@@ -104,10 +104,16 @@ fn quote(path: &Path) -> String {
     format!("'{}'", path.display().to_string().replace('\'', "'\\''"))
 }
 
+/// Most array tasks (shards) of one submission.
+const MAX_TASKS: usize = 10_000;
+
 /// `sigmap submit`.
 pub(crate) fn submit(args: SubmitArgs) -> Result<()> {
-    if args.tasks == 0 {
-        return Err(Error::Usage("--tasks must be at least 1".into()));
+    if !(1..=MAX_TASKS).contains(&args.tasks) {
+        return Err(Error::Usage(format!(
+            "--tasks {} must be between 1 and {MAX_TASKS}",
+            args.tasks
+        )));
     }
     if Command::new("sbatch").arg("--version").output().is_err() {
         return Err(Error::Usage(
@@ -139,6 +145,15 @@ pub(crate) fn submit(args: SubmitArgs) -> Result<()> {
                     "this folder holds a submission of {}, not of {}",
                     previous.experiment.display(),
                     experiment_path.display()
+                ),
+            ));
+        }
+        if !(1..=MAX_TASKS).contains(&previous.tasks) {
+            return Err(Error::input(
+                out.join("submit.toml"),
+                format!(
+                    "tasks = {} must be between 1 and {MAX_TASKS}",
+                    previous.tasks
                 ),
             ));
         }
@@ -225,6 +240,15 @@ pub(crate) fn submit(args: SubmitArgs) -> Result<()> {
 pub(crate) fn status(args: StatusArgs) -> Result<()> {
     let manifest = args.dir.join("submit.toml");
     let submission: Submission = crate::error::read_toml(&manifest)?;
+    if !(1..=MAX_TASKS).contains(&submission.tasks) {
+        return Err(Error::input(
+            &manifest,
+            format!(
+                "tasks = {} must be between 1 and {MAX_TASKS}",
+                submission.tasks
+            ),
+        ));
+    }
     let experiment = Experiment::load(&submission.experiment)?;
     let states = progress(&experiment, &args.dir, submission.tasks)?;
     println!(

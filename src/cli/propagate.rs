@@ -9,6 +9,9 @@ use crate::uncertainty::{read_chain_file, UncertainPoint};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+/// Most Monte Carlo draws one command makes (about a minute of work).
+const MAX_SAMPLES: usize = 100_000_000;
+
 /// `sigmap propagate`.
 pub(crate) fn run(args: PropagateArgs) -> Result<()> {
     let (chain, file_point) = read_chain_file(&args.chain)?;
@@ -29,8 +32,11 @@ pub(crate) fn run(args: PropagateArgs) -> Result<()> {
             ))
         }
     };
-    if args.samples < 2 {
-        return Err(Error::Usage("--samples must be at least 2".into()));
+    if !(2..=MAX_SAMPLES).contains(&args.samples) {
+        return Err(Error::Usage(format!(
+            "--samples {} must be between 2 and {MAX_SAMPLES}",
+            args.samples
+        )));
     }
     if args.sweep {
         return run_sweep(&args, &chain, &point);
@@ -87,8 +93,17 @@ fn run_sweep(
     chain: &crate::uncertainty::UncertainChain,
     point: &UncertainPoint,
 ) -> Result<()> {
-    if args.sweep_points < 2 {
-        return Err(Error::Usage("--sweep-points must be at least 2".into()));
+    if !(2..=1000).contains(&args.sweep_points) {
+        return Err(Error::Usage(format!(
+            "--sweep-points {} must be between 2 and 1000",
+            args.sweep_points
+        )));
+    }
+    if args.samples.saturating_mul(args.sweep_points) > MAX_SAMPLES {
+        return Err(Error::Usage(format!(
+            "--samples {} x --sweep-points {} draws exceed {MAX_SAMPLES}",
+            args.samples, args.sweep_points
+        )));
     }
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results").join(format!("{}_sweep", crate::sim::scene::stem(&args.chain)))

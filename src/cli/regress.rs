@@ -3,17 +3,62 @@
 use super::RegressArgs;
 use crate::error::{Error, Result};
 use crate::experiment::regress::compare;
-use crate::experiment::runner::{read_rows, SummaryRow};
+use crate::experiment::runner::SummaryRow;
+use std::collections::BTreeSet;
+use std::path::Path;
+
+/// The rows of a `summary.csv`: at least one, none repeated.
+fn read_summary(path: &Path) -> Result<Vec<SummaryRow>> {
+    if !path.is_file() {
+        return Err(Error::input(
+            path,
+            if path.exists() {
+                "is not a file"
+            } else {
+                "file not found"
+            },
+        ));
+    }
+    let not_summary = |e: &dyn std::fmt::Display| {
+        Error::input(
+            path,
+            format!("is not a summary.csv written by `sigmap run` ({e})"),
+        )
+    };
+    let mut reader = csv::Reader::from_path(path).map_err(|e| not_summary(&e))?;
+    let rows: Vec<SummaryRow> = reader
+        .deserialize()
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| not_summary(&e))?;
+    if rows.is_empty() {
+        return Err(Error::input(path, "holds no rows: nothing to compare"));
+    }
+    let mut seen = BTreeSet::new();
+    if let Some(r) = rows
+        .iter()
+        .find(|r| !seen.insert((&r.cell, &r.method, &r.metric)))
+    {
+        return Err(Error::input(
+            path,
+            format!(
+                "lists method '{}', metric '{}' of cell '{}' twice",
+                r.method, r.metric, r.cell
+            ),
+        ));
+    }
+    Ok(rows)
+}
 
 /// `sigmap regress`.
 pub(crate) fn run(args: RegressArgs) -> Result<()> {
-    for path in [&args.current, &args.baseline] {
-        if !path.exists() {
-            return Err(Error::input(path, "file not found"));
-        }
+    let current = read_summary(&args.current)?;
+    let baseline = read_summary(&args.baseline)?;
+    if !baseline.iter().any(|b| b.mean.is_finite()) {
+        return Err(Error::input(
+            &args.baseline,
+            "has no finite metric: nothing to compare against",
+        ));
     }
-    let current: Vec<SummaryRow> = read_rows(&args.current)?;
-    let baseline: Vec<SummaryRow> = read_rows(&args.baseline)?;
     let mut overrides = Vec::new();
     for t in &args.tolerance {
         let (metric, value) = t
@@ -24,14 +69,19 @@ pub(crate) fn run(args: RegressArgs) -> Result<()> {
                     "--tolerance '{t}': expected METRIC=VALUE with VALUE >= 0"
                 ))
             })?;
+        if !baseline.iter().any(|b| b.metric == metric) {
+            return Err(Error::Usage(format!(
+                "--tolerance '{t}': the baseline has no metric '{metric}'"
+            )));
+        }
         overrides.push((metric, value));
     }
     let results = compare(&current, &baseline, &overrides);
     let regressed: Vec<_> = results.iter().filter(|c| c.regressed()).collect();
+    let compared = results.iter().filter(|c| c.baseline.is_finite()).count();
     if regressed.is_empty() {
         println!(
-            "no regression: {} metrics within tolerance of {}",
-            results.len(),
+            "no regression: {compared} metrics within tolerance of {}",
             args.baseline.display()
         );
         return Ok(());

@@ -20,6 +20,12 @@ use std::sync::Mutex;
 
 /// `sigmap run`.
 pub(crate) fn run(args: RunArgs) -> Result<()> {
+    if let Some(seed) = args.run.seed {
+        return Err(Error::Usage(format!(
+            "--seed {seed} does not apply to `sigmap run`, which runs the experiment's `seeds` \
+             list (edit it in the file; `sigmap map` and `simulate` take --seed)"
+        )));
+    }
     let experiment = Experiment::load(&args.experiment)?;
     // Every cell is loaded (and so checked) before any run starts.
     let cells: Vec<Experiment> = experiment

@@ -248,9 +248,26 @@ impl Experiment {
         if let Some(scale) = pose_scale {
             profile.scale_pose_errors(scale);
         }
-        for axis in &file.sweeps {
+        let what = match pose_scale {
+            Some(scale) => format!("at pose_error_scale = {scale:e}"),
+            None => "the profile".into(),
+        };
+        profile
+            .check_pose_magnitudes(&what)
+            .map_err(|e| Error::input(&profile.source, e))?;
+        for (i, axis) in file.sweeps.iter().enumerate() {
             if axis.values.is_empty() {
                 return Err(bad(format!("[[sweep]] '{}' has no values", axis.field)));
+            }
+            if file.sweeps[..i].iter().any(|a| a.field == axis.field) {
+                return Err(bad(format!("[[sweep]] '{}' is swept twice", axis.field)));
+            }
+            let labels: Vec<String> = axis.values.iter().map(|v| v.to_string()).collect();
+            if let Some(j) = (0..labels.len()).find(|&j| labels[..j].contains(&labels[j])) {
+                return Err(bad(format!(
+                    "[[sweep]] '{}' lists the value {} more than once",
+                    axis.field, labels[j]
+                )));
             }
         }
         let robot = Robot::load(&dir.join(&file.robot.urdf))?;
@@ -302,6 +319,9 @@ impl Experiment {
         if seeds.is_empty() {
             return Err(bad("`seeds` is empty".into()));
         }
+        if let Some(seed) = first_repeat(&seeds) {
+            return Err(bad(format!("`seeds` lists {seed} more than once")));
+        }
         let methods = match &file.methods {
             None => vec![
                 super::model::Method::Blind,
@@ -316,10 +336,25 @@ impl Experiment {
         if methods.is_empty() {
             return Err(bad("`methods` is empty".into()));
         }
+        if let Some(method) = first_repeat(&methods) {
+            return Err(bad(format!("`methods` lists {method} more than once")));
+        }
         let scanner = file.sensor.build().map_err(bad)?;
         if file.viewpoints.is_empty() {
             return Err(bad("the experiment has no [[viewpoint]]".into()));
         }
+        let beams = scanner.directions.len() as f64 * file.viewpoints.len() as f64;
+        if file.viewpoints.len() > MAX_VIEWPOINTS || beams > MAX_BEAMS_PER_RUN {
+            return Err(bad(format!(
+                "{} viewpoints x {} beams = {beams:.3e} beams per run; sigmap handles at most \
+                 {MAX_VIEWPOINTS} viewpoints and {MAX_BEAMS_PER_RUN:.0} beams per run \
+                 (use fewer viewpoints or larger sensor steps)",
+                file.viewpoints.len(),
+                scanner.directions.len()
+            )));
+        }
+        crate::mapping::octree::check_span(scene.workspace.reach(), file.resolution)
+            .map_err(|e| Error::input(&scene.source, e))?;
         let mut experiment = Self {
             name: file.name.unwrap_or_else(|| crate::sim::scene::stem(path)),
             description: file.description,
@@ -480,6 +515,21 @@ impl Experiment {
         }
         Ok(viewpoint)
     }
+}
+
+/// Most viewpoints per experiment.
+pub const MAX_VIEWPOINTS: usize = 10_000;
+/// Most beams per run (all viewpoints): a run's scans, their truth and one
+/// map stay within a few GB.
+pub const MAX_BEAMS_PER_RUN: f64 = 16_000_000.0;
+
+/// The first value that appears twice.
+fn first_repeat<T: PartialEq + Copy>(values: &[T]) -> Option<T> {
+    values
+        .iter()
+        .enumerate()
+        .find(|(i, v)| values[..*i].contains(v))
+        .map(|(_, v)| *v)
 }
 
 #[cfg(test)]

@@ -276,6 +276,9 @@ pub fn slice_height(truth: &Octree) -> f64 {
     (((lo + hi) / 2.0 / res).floor() + 0.5) * res
 }
 
+/// Most cells drawn per axis of a slice panel.
+const MAX_SLICE_CELLS: f64 = 160.0;
+
 /// `slice.svg`: a horizontal slice at height `z` of each map against the
 /// truth: correct occupied, correct free, false-free, false-occupied, unknown.
 pub fn plot_slice(
@@ -287,8 +290,16 @@ pub fn plot_slice(
 ) -> Result<()> {
     let err = |e: &dyn std::fmt::Display| Error::input(path, format!("cannot draw the slice: {e}"));
     let res = truth.resolution();
-    let nx = ((workspace.max.x - workspace.min.x) / res).ceil() as usize;
-    let ny = ((workspace.max.y - workspace.min.y) / res).ceil() as usize;
+    let (nx, ny) = (
+        ((workspace.max.x - workspace.min.x) / res).ceil(),
+        ((workspace.max.y - workspace.min.y) / res).ceil(),
+    );
+    // A panel is ~400 px: beyond 160 cells per axis, draw every `step`-th
+    // cell (its centre's class) as a step x step block, so the file stays
+    // small whatever the workspace.
+    let step = (nx.max(ny) / MAX_SLICE_CELLS).ceil().max(1.0);
+    let (nx, ny) = ((nx / step).ceil() as usize, (ny / step).ceil() as usize);
+    let cell = res * step;
     let root = SVGBackend::new(path, (460 * maps.len().max(1) as u32, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let colours = [
@@ -321,8 +332,8 @@ pub fn plot_slice(
         for i in 0..nx {
             for j in 0..ny {
                 let p = Point3::new(
-                    workspace.min.x + (i as f64 + 0.5) * res,
-                    workspace.min.y + (j as f64 + 0.5) * res,
+                    workspace.min.x + (i as f64 + 0.5) * cell,
+                    workspace.min.y + (j as f64 + 0.5) * cell,
                     z,
                 );
                 let Some(t) = truth.value_at(&p) else {
@@ -345,7 +356,7 @@ pub fn plot_slice(
                     }
                     _ => 4,
                 };
-                cells[class].push((p.x - res / 2.0, p.y - res / 2.0));
+                cells[class].push((p.x - cell / 2.0, p.y - cell / 2.0));
             }
         }
         for ((name, colour), corners) in colours.iter().zip(cells) {
@@ -353,7 +364,7 @@ pub fn plot_slice(
             chart
                 .draw_series(
                     corners.into_iter().map(|(x, y)| {
-                        Rectangle::new([(x, y), (x + res, y + res)], colour.filled())
+                        Rectangle::new([(x, y), (x + cell, y + cell)], colour.filled())
                     }),
                 )
                 .map_err(|e| err(&e))?

@@ -89,6 +89,20 @@ pub fn logodds(p: f64) -> f32 {
     (p / (1.0 - p)).ln() as f32
 }
 
+/// Checks that points up to `reach` metres from the origin (on any axis),
+/// plus one cell of grid offset, fit in a tree of this resolution (±32768
+/// cells around the origin).
+pub fn check_span(reach: f64, resolution: f64) -> Result<(), String> {
+    if reach.is_finite() && reach + resolution < (CENTER - 1) as f64 * resolution {
+        return Ok(());
+    }
+    Err(format!(
+        "the workspace reaches {reach} m from the scene origin; at resolution {resolution} m \
+         the map spans only ±{} m (use a coarser resolution or a smaller workspace)",
+        (CENTER - 1) as f64 * resolution
+    ))
+}
+
 /// OctoMap's hit update, `logodds(0.7)` = 0.8473 (MATH.md §4.2), bit-exact.
 pub const LOG_ODDS_HIT: f32 = f32::from_bits(0x3f58_e883);
 /// OctoMap's miss update, `logodds(0.4)` = −0.4055, bit-exact.

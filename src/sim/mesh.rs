@@ -14,6 +14,9 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
+/// Most bytes of a mesh file (a few million triangles).
+pub const MAX_MESH_BYTES: u64 = 512 << 20;
+
 impl Mesh {
     /// Reads an OBJ (`.obj`) or STL (`.stl`, ASCII or binary) file.
     pub fn load(path: &Path) -> Result<Self> {
@@ -24,6 +27,7 @@ impl Mesh {
         if !path.exists() {
             return Err(Error::input(path, "mesh file not found"));
         }
+        crate::error::check_input_file(path, MAX_MESH_BYTES)?;
         let mesh = match ext.as_deref() {
             Some("obj") => Self::load_obj(path)?,
             Some("stl") => Self::load_stl(path)?,

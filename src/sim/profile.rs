@@ -140,6 +140,36 @@ impl ErrorProfile {
             ArmError::Joints(s) => s.iter_mut().for_each(|v| *v *= scale),
         }
     }
+
+    /// Checks that every pose error is within the range the additive-angle
+    /// model and the statistics handle: translations up to 1 m, angles up to
+    /// 0.5 rad (standard deviations). `what` says where the values came from.
+    pub fn check_pose_magnitudes(&self, what: &str) -> std::result::Result<(), String> {
+        let pose = |name: &str, c: &Matrix6| -> std::result::Result<(), String> {
+            for i in 0..6 {
+                let (sigma, limit) = (c[(i, i)].sqrt(), if i < 3 { 1.0 } else { 0.5 });
+                if sigma.is_nan() || sigma > limit {
+                    return Err(format!(
+                        "{what}: [{name}] sigma[{i}] = {sigma:e} exceeds {limit} {}",
+                        if i < 3 { "m" } else { "rad" }
+                    ));
+                }
+            }
+            Ok(())
+        };
+        pose("world_from_scene", &self.world_from_scene)?;
+        pose("robot_from_camera", &self.robot_from_camera)?;
+        match &self.arm {
+            ArmError::Pose(c) => pose("world_from_robot", c),
+            ArmError::Joints(s) => match s.iter().position(|v| v.is_nan() || *v > 0.5) {
+                Some(i) => Err(format!(
+                    "{what}: [world_from_robot] joint_sigma[{i}] = {:e} exceeds 0.5 rad",
+                    s[i]
+                )),
+                None => Ok(()),
+            },
+        }
+    }
 }
 
 #[cfg(test)]

@@ -113,6 +113,12 @@ impl Robot {
                         "limits [{lower}, {upper}] are not an interval"
                     )));
                 }
+                if lower == upper {
+                    return Err(bad(format!(
+                        "has no <limit lower=.. upper=..> or a zero range [{lower}, {upper}]: \
+                         a moving joint needs lower < upper (use type=\"fixed\" for a locked one)"
+                    )));
+                }
                 Ok((lower, upper))
             };
             let motion = match joint.joint_type {
@@ -146,6 +152,24 @@ impl Robot {
                     "link '{}' has two parent joints; a URDF must be a tree",
                     joint.child.link
                 )));
+            }
+        }
+        // Every link reaches a root within as many steps as there are links.
+        for start in &links {
+            let mut link = start;
+            for _ in 0..=links.len() {
+                match parent_joint.get(link) {
+                    Some((parent, _)) => link = parent,
+                    None => break,
+                }
+            }
+            if parent_joint.contains_key(link) {
+                return Err(Error::input(
+                    path,
+                    format!(
+                        "the joints form a cycle through link '{start}'; a URDF must be a tree"
+                    ),
+                ));
             }
         }
         Ok(Self {

@@ -25,6 +25,17 @@ pub struct Bounds {
 }
 
 impl Bounds {
+    /// The largest distance of the box from the origin along any axis (m).
+    pub fn reach(&self) -> f64 {
+        self.min
+            .coords
+            .iter()
+            .chain(self.max.coords.iter())
+            .fold(0.0, |m, v| m.max(v.abs()))
+    }
+}
+
+impl Bounds {
     /// True when `p` lies inside (boundary included).
     pub fn contains(&self, p: &Point3) -> bool {
         (0..3).all(|k| p[k] >= self.min[k] && p[k] <= self.max[k])

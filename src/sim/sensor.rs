@@ -46,9 +46,19 @@ pub struct Scanner {
     pub max_range: f64,
 }
 
+/// Most beams per viewpoint (a 2000 x 2000 raster): beyond it a run's scans
+/// and local grids no longer fit in a workstation's memory.
+pub const MAX_BEAMS_PER_VIEWPOINT: f64 = 4_000_000.0;
+
+/// How many angles `angles` gives (as a float, so that absurd steps are
+/// caught before anything is allocated).
+fn angle_count(fov_deg: f64, step_deg: f64) -> f64 {
+    (fov_deg / step_deg + 1e-9).floor() + 1.0
+}
+
 /// Angles `-fov/2 ..= fov/2` with the given step, symmetric about 0.
 fn angles(fov_deg: f64, step_deg: f64) -> Vec<f64> {
-    let n = (fov_deg / step_deg + 1e-9).floor() as usize + 1;
+    let n = angle_count(fov_deg, step_deg) as usize;
     let span = (n - 1) as f64 * step_deg;
     (0..n)
         .map(|i| (-span / 2.0 + i as f64 * step_deg).to_radians())
@@ -88,18 +98,24 @@ impl ScannerSpec {
                 ));
             }
         }
+        let rows = if self.vertical_fov_deg == 0.0 {
+            1.0
+        } else {
+            angle_count(self.vertical_fov_deg, v_step)
+        };
+        let beams = angle_count(self.horizontal_fov_deg, self.horizontal_step_deg) * rows;
+        if beams.is_nan() || beams > MAX_BEAMS_PER_VIEWPOINT {
+            return Err(format!(
+                "[sensor] these fields of view and steps give {beams:.3e} beams per viewpoint; \
+                 sigmap handles at most {MAX_BEAMS_PER_VIEWPOINT:.0} (use larger steps)"
+            ));
+        }
         let horizontal = angles(self.horizontal_fov_deg, self.horizontal_step_deg);
         let vertical = if self.vertical_fov_deg == 0.0 {
             vec![0.0f64]
         } else {
             angles(self.vertical_fov_deg, v_step)
         };
-        let beams = horizontal.len() * vertical.len();
-        if beams > 50_000_000 {
-            return Err(format!(
-                "[sensor] {beams} beams per viewpoint is more than sigmap handles (50 M)"
-            ));
-        }
         let directions = vertical
             .iter()
             .flat_map(|&v| {
@@ -142,14 +158,16 @@ pub struct RangeModel {
 impl RangeModel {
     /// Checks the numbers; errors are phrased for the `[range]` table.
     pub fn check(&self) -> Result<(), String> {
-        for (name, value) in [
-            ("sigma0", self.sigma0),
-            ("k", self.k),
-            ("angular_sigma", self.angular_sigma),
+        // Beyond these a "range sensor" says nothing and the statistics
+        // overflow: a metre of noise, a metre per metre, half a radian.
+        for (name, value, limit) in [
+            ("sigma0", self.sigma0, 1.0),
+            ("k", self.k, 1.0),
+            ("angular_sigma", self.angular_sigma, 0.5),
         ] {
-            if !value.is_finite() || value < 0.0 {
+            if !value.is_finite() || !(0.0..=limit).contains(&value) {
                 return Err(format!(
-                    "[range] {name} = {value} must be a finite number >= 0"
+                    "[range] {name} = {value:e} must be between 0 and {limit}"
                 ));
             }
         }

@@ -1,0 +1,286 @@
+//! Bad and absurd input is refused up front: exit 2, one line that names the
+//! file and what is wrong, no panic, no hang, no huge allocation.
+
+mod common;
+
+use common::{root, sigmap};
+use std::path::{Path, PathBuf};
+
+/// The quickstart experiment with absolute paths, one line replaced.
+fn experiment(dir: &Path, name: &str, from: &str, to: &str) -> PathBuf {
+    let r = root().display().to_string();
+    let text = std::fs::read_to_string(root().join("experiments/quickstart.toml"))
+        .unwrap()
+        .replace("../", &format!("{r}/"))
+        .replace(
+            "profiles/collaborative.toml",
+            &format!("{r}/experiments/profiles/collaborative.toml"),
+        );
+    assert!(text.contains(from), "{from}");
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
+    path
+}
+
+/// Runs sigmap and checks: exit 2, one line on stderr naming `names` and
+/// saying `says`.
+fn refused(args: &[&str], names: &str, says: &str) {
+    let out = sigmap(args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
+    assert!(
+        stderr.contains(names) && stderr.contains(says),
+        "{args:?}: expected '{names}' and '{says}' in: {stderr}"
+    );
+}
+
+#[test]
+fn absurd_sizes_are_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |path: &Path, says: &str| {
+        let out = d.join("out");
+        refused(
+            &[
+                "run",
+                path.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            path.file_name().unwrap().to_str().unwrap(),
+            says,
+        );
+    };
+    let step = "horizontal_step_deg = 0.5";
+    run(
+        &experiment(d, "tiny_step", step, "horizontal_step_deg = 1e-300"),
+        "beams per viewpoint",
+    );
+    run(
+        &experiment(d, "small_step", step, "horizontal_step_deg = 1e-9"),
+        "beams per viewpoint",
+    );
+    let mut many = std::fs::read_to_string(experiment(d, "many", "seed = 1", "seed = 1")).unwrap();
+    for _ in 0..10_001 {
+        many.push_str("\n[[viewpoint]]\njoints = [0.0, -1.2, 1.6, -1.97, -1.5708, 0.0]\n");
+    }
+    std::fs::write(d.join("many.toml"), many).unwrap();
+    run(&d.join("many.toml"), "viewpoints");
+    run(
+        &experiment(d, "dup_seeds", "seeds = [1, 2, 3]", "seeds = [1, 2, 1]"),
+        "lists 1 more than once",
+    );
+    run(
+        &experiment(
+            d,
+            "dup_methods",
+            r#"methods = ["blind","#,
+            r#"methods = ["unscented", "blind","#,
+        ),
+        "lists unscented more than once",
+    );
+    let sweep = experiment(d, "dup_sweep", "seed = 1", "seed = 1");
+    let mut text = std::fs::read_to_string(&sweep).unwrap();
+    text.push_str("\n[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [2, 2.0]\n");
+    std::fs::write(&sweep, text).unwrap();
+    run(&sweep, "lists the value 2 more than once");
+    let huge = experiment(d, "huge_scale", "seed = 1", "seed = 1");
+    let mut text = std::fs::read_to_string(&huge).unwrap();
+    text.push_str("\n[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [1e200]\n");
+    std::fs::write(&huge, text).unwrap();
+    let out = sigmap(&[
+        "run",
+        huge.to_str().unwrap(),
+        "--out",
+        d.join("o").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("at pose_error_scale = 1e200"));
+    // A profile with an absurd sigma.
+    let profile = d.join("p.toml");
+    std::fs::write(
+        &profile,
+        std::fs::read_to_string(root().join("experiments/profiles/collaborative.toml"))
+            .unwrap()
+            .replacen("sigma0 = 0.001", "sigma0 = 1e300", 1),
+    )
+    .unwrap();
+    let r = root().display().to_string();
+    let e = experiment(
+        d,
+        "huge_sigma",
+        &format!("{r}/experiments/profiles/collaborative.toml"),
+        profile.to_str().unwrap(),
+    );
+    let out = sigmap(&[
+        "run",
+        e.to_str().unwrap(),
+        "--out",
+        d.join("o").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("sigma0 = 1e300 must be between 0 and 1"));
+    // A workspace the octree cannot hold.
+    let scene = d.join("scene.toml");
+    std::fs::write(
+        &scene,
+        std::fs::read_to_string(root().join("scenes/tabletop.toml"))
+            .unwrap()
+            .replace("meshes/bunny.obj", &format!("{r}/scenes/meshes/bunny.obj"))
+            .replacen("max = [0.4, 0.4, 0.36]", "max = [1e6, 0.4, 0.36]", 1),
+    )
+    .unwrap();
+    let e = experiment(
+        d,
+        "huge_ws",
+        &format!("{r}/scenes/tabletop.toml"),
+        scene.to_str().unwrap(),
+    );
+    refused(
+        &["run", e.to_str().unwrap()],
+        "scene.toml",
+        "the map spans only",
+    );
+    // Flags.
+    let q = "experiments/quickstart.toml";
+    refused(
+        &[
+            "run",
+            q,
+            "--threads",
+            "5000",
+            "--out",
+            d.join("o").to_str().unwrap(),
+        ],
+        "--threads 5000",
+        "cores",
+    );
+    refused(&["run", q, "--seed", "7"], "--seed 7", "does not apply");
+    refused(&["submit", q, "--tasks", "0"], "--tasks 0", "between 1 and");
+}
+
+#[test]
+fn bad_files_are_named_in_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Malformed TOML: one line with the position.
+    let bad = d.join("bad.toml");
+    std::fs::write(&bad, "name = \"x\"\nseeds = [1\n").unwrap();
+    refused(&["run", bad.to_str().unwrap()], "bad.toml", "line 2");
+    // A mesh that is a device, not a file.
+    #[cfg(unix)]
+    {
+        let mesh = d.join("zero.obj");
+        std::os::unix::fs::symlink("/dev/zero", &mesh).unwrap();
+        let r = root().display().to_string();
+        let scene = d.join("scene.toml");
+        std::fs::write(
+            &scene,
+            std::fs::read_to_string(root().join("scenes/tabletop.toml"))
+                .unwrap()
+                .replace("meshes/bunny.obj", mesh.to_str().unwrap()),
+        )
+        .unwrap();
+        let e = experiment(
+            d,
+            "zero",
+            &format!("{r}/scenes/tabletop.toml"),
+            scene.to_str().unwrap(),
+        );
+        refused(
+            &["run", e.to_str().unwrap()],
+            "zero.obj",
+            "not a regular file",
+        );
+    }
+    // URDFs: a cycle, and a revolute joint without limits.
+    let urdf = std::fs::read_to_string(root().join("robots/ur5.urdf")).unwrap();
+    let cycle = d.join("cycle.urdf");
+    std::fs::write(
+        &cycle,
+        urdf.replace(
+            "</robot>",
+            "<link name=\"a\"/><link name=\"b\"/>\
+             <joint name=\"ab\" type=\"fixed\"><parent link=\"a\"/><child link=\"b\"/></joint>\
+             <joint name=\"ba\" type=\"fixed\"><parent link=\"b\"/><child link=\"a\"/></joint></robot>",
+        ),
+    )
+    .unwrap();
+    let r = root().display().to_string();
+    let e = experiment(
+        d,
+        "cycle",
+        &format!("{r}/robots/ur5.urdf"),
+        cycle.to_str().unwrap(),
+    );
+    refused(&["run", e.to_str().unwrap()], "cycle.urdf", "cycle");
+    let nolimit = d.join("nolimit.urdf");
+    let first_limit = urdf.find("<limit").unwrap();
+    let end = first_limit + urdf[first_limit..].find("/>").unwrap() + 2;
+    std::fs::write(
+        &nolimit,
+        format!("{}{}", &urdf[..first_limit], &urdf[end..]),
+    )
+    .unwrap();
+    let e = experiment(
+        d,
+        "nolimit",
+        &format!("{r}/robots/ur5.urdf"),
+        nolimit.to_str().unwrap(),
+    );
+    refused(
+        &["run", e.to_str().unwrap()],
+        "nolimit.urdf",
+        "shoulder_pan_joint",
+    );
+}
+
+#[test]
+fn regress_refuses_what_it_cannot_compare() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let baseline = root().join("results/baselines/quickstart.csv");
+    let b = baseline.to_str().unwrap();
+    let text = std::fs::read_to_string(&baseline).unwrap();
+    let header = text.lines().next().unwrap();
+    let write = |name: &str, body: &str| {
+        let p = d.join(name);
+        std::fs::write(&p, body).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let empty = write("empty.csv", "");
+    let header_only = write("header.csv", &format!("{header}\n"));
+    let nan: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 0 {
+                format!("{l}\n")
+            } else {
+                let mut f: Vec<&str> = l.split(',').collect();
+                f[4] = "NaN";
+                format!("{}\n", f.join(","))
+            }
+        })
+        .collect();
+    let nan = write("nan.csv", &nan);
+    let second = text.lines().nth(1).unwrap();
+    let dup = write("dup.csv", &format!("{text}{second}\n"));
+    for (path, says) in [
+        (empty.as_str(), "holds no rows"),
+        (header_only.as_str(), "holds no rows"),
+        (nan.as_str(), "no finite metric"),
+        (dup.as_str(), "twice"),
+        (d.to_str().unwrap(), "is not a file"),
+    ] {
+        refused(&["regress", b, "--baseline", path], path, says);
+    }
+    refused(
+        &["regress", b, "--baseline", b, "--tolerance", "nope=0.1"],
+        "nope",
+        "no metric",
+    );
+    // The baseline against itself passes.
+    assert!(sigmap(&["regress", b, "--baseline", b]).status.success());
+}
