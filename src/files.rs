@@ -31,11 +31,56 @@ fn parent(path: &Path) -> &Path {
         .unwrap_or(Path::new("."))
 }
 
+/// True while process `pid` runs (on Linux, `/proc/PID` exists; elsewhere
+/// every process is assumed alive, so nothing is removed).
+fn alive(pid: u32) -> bool {
+    if cfg!(target_os = "linux") {
+        Path::new(&format!("/proc/{pid}")).exists()
+    } else {
+        true
+    }
+}
+
+/// Removes the staging leftovers of `path` (`.NAME.partial-PID`,
+/// `.NAME.old-PID`) whose process is gone: a run killed mid-write. An old
+/// folder whose replacement never arrived is moved back.
+pub fn clean_stale(path: &Path) {
+    let Some(name) = path.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+        return;
+    };
+    let Ok(entries) = std::fs::read_dir(parent(path)) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        for tag in ["partial", "old"] {
+            let Some(pid) = file
+                .strip_prefix(&format!(".{name}.{tag}-"))
+                .and_then(|p| p.parse::<u32>().ok())
+            else {
+                continue;
+            };
+            if pid == std::process::id() || alive(pid) {
+                continue;
+            }
+            let stale = entry.path();
+            if tag == "old" && !path.exists() {
+                let _ = std::fs::rename(&stale, path);
+            } else if stale.is_dir() {
+                let _ = std::fs::remove_dir_all(&stale);
+            } else {
+                let _ = std::fs::remove_file(&stale);
+            }
+        }
+    }
+}
+
 /// Writes `bytes` to `path` through a synced staging file and a rename: a
 /// full disk or a kill leaves the previous file (or none), never half a file.
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     let dir = parent(path);
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    clean_stale(path);
     let staging = sibling(path, "partial");
     let written = (|| {
         let mut file = std::fs::File::create(&staging)?;
@@ -78,6 +123,7 @@ pub fn write_folder(out: &Path, fill: impl FnOnce(&Path) -> Result<()>) -> Resul
     }
     let dir = parent(out);
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    clean_stale(out);
     let staging = sibling(out, "partial");
     if staging.exists() {
         // Our own process id: a leftover of this very process.
@@ -111,6 +157,62 @@ pub fn write_folder(out: &Path, fill: impl FnOnce(&Path) -> Result<()>) -> Resul
         std::fs::remove_dir_all(&old).map_err(|e| Error::io(&old, e))?;
     }
     Ok(())
+}
+
+/// One writer per results folder: `.sigmap-run.lock` holds the process id
+/// of the `sigmap run` writing there, and goes when it ends.
+pub struct RunLock {
+    path: PathBuf,
+}
+
+impl RunLock {
+    /// Takes the folder's lock, or says which process holds it. A lock left
+    /// by a process that is gone is taken over.
+    pub fn acquire(dir: &Path) -> Result<RunLock> {
+        let path = dir.join(".sigmap-run.lock");
+        for _ in 0..2 {
+            match std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&path)
+            {
+                Ok(mut file) => {
+                    let _ = writeln!(file, "{}", std::process::id());
+                    return Ok(RunLock { path });
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let holder = std::fs::read_to_string(&path)
+                        .ok()
+                        .and_then(|t| t.trim().parse::<u32>().ok());
+                    match holder {
+                        Some(pid) if alive(pid) => {
+                            return Err(Error::input(
+                                dir,
+                                format!(
+                                    "another sigmap run (process {pid}) is writing into this \
+                                     folder; wait for it to end or choose another --out"
+                                ),
+                            ))
+                        }
+                        _ => {
+                            let _ = std::fs::remove_file(&path);
+                        }
+                    }
+                }
+                Err(e) => return Err(Error::io(&path, e)),
+            }
+        }
+        Err(Error::input(
+            dir,
+            "cannot take the folder's lock (.sigmap-run.lock)",
+        ))
+    }
+}
+
+impl Drop for RunLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
 }
 
 #[cfg(test)]
@@ -173,6 +275,35 @@ mod tests {
         std::fs::create_dir_all(&empty).unwrap();
         write_folder(&empty, |d| put(d, "a.csv", "1")).unwrap();
         assert!(empty.join("a.csv").is_file());
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn leftovers_of_dead_processes_are_cleaned_and_a_live_lock_refuses() {
+        let root = scratch("stale");
+        let out = root.join("scans");
+        // A process id that cannot be running (above Linux's pid_max).
+        let dead = 4_999_999;
+        std::fs::create_dir_all(root.join(format!(".scans.partial-{dead}"))).unwrap();
+        std::fs::write(root.join(format!(".map.bt.partial-{dead}")), "half").unwrap();
+        write_folder(&out, |d| put(d, "a.csv", "1")).unwrap();
+        write_file(&root.join("map.bt"), b"whole").unwrap();
+        let mut names: Vec<String> = std::fs::read_dir(&root)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["map.bt", "scans"]);
+        // The lock: ours holds, a second is refused, a dead holder's is taken over.
+        let lock = RunLock::acquire(&root).unwrap();
+        std::fs::write(root.join(".sigmap-run.lock"), "1\n").unwrap(); // pid 1 is alive
+        let err = RunLock::acquire(&root).err().unwrap();
+        assert!(err.to_string().contains("process 1"), "{err}");
+        drop(lock);
+        std::fs::write(root.join(".sigmap-run.lock"), format!("{dead}\n")).unwrap();
+        let lock = RunLock::acquire(&root).unwrap();
+        drop(lock);
+        assert!(!root.join(".sigmap-run.lock").exists());
         std::fs::remove_dir_all(&root).unwrap();
     }
 

@@ -89,14 +89,50 @@ fn opdf_figures_are_drawn() {
             .unwrap()
             .starts_with("<svg"));
     }
+    // Every curve (a surface measured at 0.5 m): a probability, free in front
+    // of the surface, occupied at it, unknown (½) beyond it.
     let mut reader = csv::Reader::from_path(dir.path().join("opdf.csv")).unwrap();
-    let mut rows = 0;
+    let mut curves: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for record in reader.records() {
-        let p: f64 = record.unwrap()[3].parse().unwrap();
+        let r = record.unwrap();
+        let (lambda, p): (f64, f64) = (r[2].parse().unwrap(), r[3].parse().unwrap());
         assert!((0.0..=1.0).contains(&p));
-        rows += 1;
+        let name = format!("{} {}", &r[0], &r[1]);
+        match curves.last_mut() {
+            Some((n, points)) if *n == name => points.push((lambda, p)),
+            _ => curves.push((name, vec![(lambda, p)])),
+        }
     }
-    assert_eq!(rows, 7 * 2001);
+    assert_eq!(curves.len(), 7);
+    for (name, points) in &curves {
+        assert_eq!(points.len(), 2001, "{name}");
+        let at = |l: f64| {
+            points
+                .iter()
+                .min_by(|a, b| (a.0 - l).abs().total_cmp(&(b.0 - l).abs()))
+                .unwrap()
+                .1
+        };
+        let (peak_at, peak) = points
+            .iter()
+            .copied()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap();
+        assert!(
+            peak > 0.55 && (peak_at - 0.5).abs() < 0.05,
+            "{name}: peak {peak} at {peak_at}"
+        );
+        assert!(
+            at(0.3) < 0.45,
+            "{name}: free space in front reads {}",
+            at(0.3)
+        );
+        assert!(
+            (at(0.6) - 0.5).abs() < 0.01,
+            "{name}: beyond the surface reads {}",
+            at(0.6)
+        );
+    }
 }
 
 #[test]

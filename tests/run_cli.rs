@@ -6,7 +6,7 @@ mod common;
 
 use common::{sigmap, sigmap_ok};
 use sigmap::experiment::journal::journal_record;
-use sigmap::experiment::runner::RunRow;
+use sigmap::experiment::runner::{RunRow, TimingRow};
 
 fn run(out: &std::path::Path, extra: &[&str]) {
     let mut args = vec![
@@ -75,8 +75,13 @@ fn results_do_not_depend_on_threads_and_survive_interruption() {
     };
     let mut first = rows(1);
     first[0].f1 = 0.123456;
-    let second = journal_record(&rows(4)).unwrap();
-    let mut journal = journal_record(&first).unwrap();
+    let timings: Vec<TimingRow> = csv::Reader::from_path(one.join("timings.csv"))
+        .unwrap()
+        .deserialize()
+        .map(|r| r.unwrap())
+        .collect();
+    let second = journal_record(&rows(4), &timings[3..6]).unwrap();
+    let mut journal = journal_record(&first, &timings[..3]).unwrap();
     journal.extend_from_slice(&second[..second.len() - 5]);
     let resumed = dir.path().join("resumed");
     std::fs::create_dir_all(&resumed).unwrap();
@@ -86,6 +91,10 @@ fn results_do_not_depend_on_threads_and_survive_interruption() {
     assert!(got.contains("0.123456"), "the whole record is reused");
     assert_eq!(got.lines().count(), lines.len());
     assert_eq!(got.lines().skip(2).collect::<Vec<_>>(), lines[2..].to_vec());
+    // The reused run keeps its timings (from the journal record).
+    let resumed_timings = std::fs::read_to_string(resumed.join("timings.csv")).unwrap();
+    assert_eq!(resumed_timings.lines().count(), timings.len() + 1);
+    assert!(resumed_timings.contains(&format!("{}", timings[0].model_s)));
     // With --fresh everything is recomputed.
     run(&resumed, &["--fresh"]);
     assert_eq!(read(&resumed.join("runs.csv")), read(&one.join("runs.csv")));

@@ -42,6 +42,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from("results").join(&experiment.name));
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let _lock = crate::files::RunLock::acquire(&out)?;
     let runs_path = out.join("runs.csv");
     let journal_path = out.join("runs.journal.csv");
     let timings_path = out.join("timings.csv");
@@ -81,7 +82,8 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     // A run counts only with a row for every method; rows of runs, methods or
     // cells the experiment does not have are dropped, and so are repeats.
     let mut rows: Vec<RunRow> = read_rows(&runs_path)?;
-    rows.extend(read_journal(&journal_path)?);
+    let (journal_rows, journal_timings) = read_journal(&journal_path)?;
+    rows.extend(journal_rows);
     let methods: Vec<&str> = experiment.methods.iter().map(|m| m.as_str()).collect();
     let mut seen = BTreeSet::new();
     rows.retain(|r| {
@@ -101,7 +103,12 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         .collect();
     rows.retain(|r| done.contains(&(r.cell.clone(), r.seed)));
     let mut timings: Vec<TimingRow> = read_rows(&timings_path)?;
-    timings.retain(|t| done.contains(&(t.cell.clone(), t.seed)));
+    timings.extend(journal_timings);
+    let mut seen = BTreeSet::new();
+    timings.retain(|t| {
+        done.contains(&(t.cell.clone(), t.seed))
+            && seen.insert((t.cell.clone(), t.seed, t.method.clone()))
+    });
     let mine = shard_runs(cells.len(), &experiment.seeds, shard, shards);
     let pending: Vec<(usize, u64)> = mine
         .iter()
@@ -151,7 +158,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
                 }
                 // One record per finished run, so an interruption loses only
                 // unfinished runs; a record cut short is ignored when read.
-                let text = journal_record(&new_rows)?;
+                let text = journal_record(&new_rows, &new_timings)?;
                 let mut file = journal
                     .lock()
                     .map_err(|_| Error::CheckFailed("journal lock poisoned".into()))?;
@@ -204,7 +211,7 @@ pub(crate) fn shard_runs(
 /// run is finished when it has a row for every one of `methods`.
 pub(crate) fn finished_runs(dir: &Path, methods: &[Method]) -> Result<BTreeSet<(String, u64)>> {
     let mut rows: Vec<RunRow> = read_rows(&dir.join("runs.csv"))?;
-    rows.extend(read_journal(&dir.join("runs.journal.csv"))?);
+    rows.extend(read_journal(&dir.join("runs.journal.csv"))?.0);
     let mut per_run = std::collections::BTreeMap::<(String, u64), BTreeSet<String>>::new();
     for r in rows {
         per_run
@@ -330,9 +337,25 @@ pub(crate) fn merge(args: MergeArgs) -> Result<()> {
             ));
         }
         rows.extend(read_rows::<RunRow>(&dir.join("runs.csv"))?);
-        rows.extend(read_journal(&dir.join("runs.journal.csv"))?);
         timings.extend(read_rows::<TimingRow>(&dir.join("timings.csv"))?);
+        let (journal_rows, journal_timings) = read_journal(&dir.join("runs.journal.csv"))?;
+        rows.extend(journal_rows);
+        timings.extend(journal_timings);
     }
+    // Only this experiment's runs, each once (a run in two shards, or in a
+    // shard's runs.csv and its journal, counts once).
+    let methods: Vec<&str> = experiment.methods.iter().map(|m| m.as_str()).collect();
+    let ours = |cell: &String, seed: &u64, method: &str| {
+        labels.contains(cell) && experiment.seeds.contains(seed) && methods.contains(&method)
+    };
+    let mut seen = BTreeSet::new();
+    rows.retain(|r| {
+        ours(&r.cell, &r.seed, &r.method) && seen.insert((r.cell.clone(), r.seed, r.method.clone()))
+    });
+    let mut seen = BTreeSet::new();
+    timings.retain(|t| {
+        ours(&t.cell, &t.seed, &t.method) && seen.insert((t.cell.clone(), t.seed, t.method.clone()))
+    });
     let have: BTreeSet<(String, u64, String)> = rows
         .iter()
         .map(|r| (r.cell.clone(), r.seed, r.method.clone()))

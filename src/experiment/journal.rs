@@ -2,7 +2,7 @@
 //! records are either whole or ignored, and the fingerprint of every input a
 //! run read, so that results of other inputs are never reused.
 
-use super::runner::RunRow;
+use super::runner::{RunRow, TimingRow};
 use super::Experiment;
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -36,35 +36,46 @@ pub fn fingerprint(cells: &[Experiment]) -> Result<String> {
     Ok(format!("{hash:016x}"))
 }
 
-/// The journal record of one finished run: its rows as CSV lines, then
-/// `#end <rows> <hash>`. A record cut short (a kill, a full disk) has no end
-/// line or a hash that does not match, and is ignored when read.
-pub fn journal_record(rows: &[RunRow]) -> Result<Vec<u8>> {
-    let mut text = Vec::new();
-    {
-        let mut w = csv::WriterBuilder::new()
-            .has_headers(false)
-            .from_writer(&mut text);
-        for r in rows {
-            w.serialize(r)
-                .map_err(|e| Error::CheckFailed(format!("cannot write a journal row: {e}")))?;
-        }
-        w.flush()
-            .map_err(|e| Error::CheckFailed(format!("cannot write a journal row: {e}")))?;
-    }
+/// The journal record of one finished run: its rows as CSV lines, a
+/// `#timings` line, its timing rows, then `#end <rows> <hash>`. A record cut
+/// short (a kill, a full disk) has no end line or a hash that does not
+/// match, and is ignored whole when read.
+pub fn journal_record(rows: &[RunRow], timings: &[TimingRow]) -> Result<Vec<u8>> {
+    let mut text = csv_lines(rows)?;
+    text.extend_from_slice(TIMINGS);
+    text.extend_from_slice(&csv_lines(timings)?);
     let end = format!("#end {} {:016x}\n", rows.len(), fnv(FNV_OFFSET, &text));
     text.extend_from_slice(end.as_bytes());
     Ok(text)
 }
 
-/// The rows of every whole record of a journal (none if it does not exist).
-pub fn read_journal(path: &Path) -> Result<Vec<RunRow>> {
+const TIMINGS: &[u8] = b"#timings\n";
+
+fn csv_lines<T: serde::Serialize>(rows: &[T]) -> Result<Vec<u8>> {
+    let mut text = Vec::new();
+    let bad =
+        |e: &dyn std::fmt::Display| Error::CheckFailed(format!("cannot write a journal row: {e}"));
+    {
+        let mut w = csv::WriterBuilder::new()
+            .has_headers(false)
+            .from_writer(&mut text);
+        for r in rows {
+            w.serialize(r).map_err(|e| bad(&e))?;
+        }
+        w.flush().map_err(|e| bad(&e))?;
+    }
+    Ok(text)
+}
+
+/// The rows and timings of every whole record of a journal (none if it
+/// does not exist).
+pub fn read_journal(path: &Path) -> Result<(Vec<RunRow>, Vec<TimingRow>)> {
     let bytes = match std::fs::read(path) {
         Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((Vec::new(), Vec::new())),
         Err(e) => return Err(Error::io(path, e)),
     };
-    let mut rows = Vec::new();
+    let (mut rows, mut timings) = (Vec::new(), Vec::new());
     let mut start = 0;
     let mut line_start = 0;
     while line_start < bytes.len() {
@@ -74,32 +85,42 @@ pub fn read_journal(path: &Path) -> Result<Vec<RunRow>> {
         let line = &bytes[line_start..line_start + len];
         let next = line_start + len + 1;
         if let Some(end) = line.strip_prefix(b"#end ") {
-            let record = &bytes[start..line_start];
-            if let Some(parsed) = parse_record(record, end) {
-                rows.extend(parsed);
+            if let Some((r, t)) = parse_record(&bytes[start..line_start], end) {
+                rows.extend(r);
+                timings.extend(t);
             }
             start = next;
         }
         line_start = next;
     }
-    Ok(rows)
+    Ok((rows, timings))
 }
 
-/// The rows of one record if its end line `<rows> <hash>` vouches for it.
-fn parse_record(record: &[u8], end: &[u8]) -> Option<Vec<RunRow>> {
+fn parse_lines<T: serde::de::DeserializeOwned>(text: &[u8]) -> Option<Vec<T>> {
+    csv::ReaderBuilder::new()
+        .has_headers(false)
+        .from_reader(text)
+        .deserialize()
+        .collect::<std::result::Result<_, _>>()
+        .ok()
+}
+
+/// The rows and timings of one record if its end line `<rows> <hash>`
+/// vouches for it.
+fn parse_record(record: &[u8], end: &[u8]) -> Option<(Vec<RunRow>, Vec<TimingRow>)> {
     let end = std::str::from_utf8(end).ok()?;
     let (count, hash) = end.trim().split_once(' ')?;
     let count: usize = count.parse().ok()?;
     if u64::from_str_radix(hash, 16).ok()? != fnv(FNV_OFFSET, record) {
         return None;
     }
-    let rows: Vec<RunRow> = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .from_reader(record)
-        .deserialize()
-        .collect::<std::result::Result<_, _>>()
-        .ok()?;
-    (rows.len() == count).then_some(rows)
+    let split = record
+        .windows(TIMINGS.len())
+        .position(|w| w == TIMINGS)
+        .filter(|&i| i == 0 || record[i - 1] == b'\n')?;
+    let rows: Vec<RunRow> = parse_lines(&record[..split])?;
+    let timings: Vec<TimingRow> = parse_lines(&record[split + TIMINGS.len()..])?;
+    (rows.len() == count).then_some((rows, timings))
 }
 
 #[cfg(test)]
@@ -127,26 +148,39 @@ mod tests {
     fn a_record_cut_anywhere_is_dropped_whole_and_the_others_kept() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("runs.journal.csv");
-        let first = journal_record(&[row(1, "a", 0.1234567), row(1, "b", 0.5)]).unwrap();
-        let second = journal_record(&[row(2, "a", 0.7654321), row(2, "b", 0.25)]).unwrap();
+        let timing = |seed| TimingRow {
+            cell: "c".into(),
+            seed,
+            method: "a".into(),
+            simulate_s: 1.5,
+            model_s: 0.25,
+            score_s: 0.125,
+        };
+        let first =
+            journal_record(&[row(1, "a", 0.1234567), row(1, "b", 0.5)], &[timing(1)]).unwrap();
+        let second =
+            journal_record(&[row(2, "a", 0.7654321), row(2, "b", 0.25)], &[timing(2)]).unwrap();
         let whole = [first.clone(), second.clone()].concat();
         std::fs::write(&path, &whole).unwrap();
-        assert_eq!(read_journal(&path).unwrap().len(), 4);
+        let (rows, timings) = read_journal(&path).unwrap();
+        assert_eq!((rows.len(), timings.len()), (4, 2));
+        assert_eq!(timings[1], timing(2));
         // Every cut inside the second record keeps exactly the first one.
         for cut in first.len()..whole.len() {
             std::fs::write(&path, &whole[..cut]).unwrap();
-            let rows = read_journal(&path).unwrap();
-            assert_eq!(rows.len(), 2, "cut at byte {cut}");
-            assert!(rows.iter().all(|r| r.seed == 1));
+            let (rows, timings) = read_journal(&path).unwrap();
+            assert_eq!((rows.len(), timings.len()), (2, 1), "cut at byte {cut}");
+            assert!(rows.iter().all(|r| r.seed == 1) && timings[0].seed == 1);
         }
         // A digit changed in place (a torn sector) fails the hash.
         let mut bad = whole.clone();
         let at = first.len() + 30;
         bad[at] = if bad[at] == b'9' { b'8' } else { b'9' };
         std::fs::write(&path, &bad).unwrap();
-        assert!(read_journal(&path).unwrap().iter().all(|r| r.seed == 1));
+        assert!(read_journal(&path).unwrap().0.iter().all(|r| r.seed == 1));
         assert!(read_journal(&dir.path().join("absent.csv"))
             .unwrap()
+            .0
             .is_empty());
     }
 }

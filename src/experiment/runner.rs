@@ -73,7 +73,7 @@ pub struct RunRow {
 }
 
 /// Stage timings of one (seed, method), for `timings.csv` (they vary run to run).
-#[derive(Clone, Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct TimingRow {
     /// The sweep cell.
     pub cell: String,
@@ -310,17 +310,18 @@ pub fn read_rows<T: for<'de> Deserialize<'de>>(path: &std::path::Path) -> Result
         })
 }
 
-/// Writes rows as CSV into `path` atomically (a temporary file, then a rename).
+/// Writes rows as CSV into `path` atomically (staged, then renamed; see
+/// [`crate::files::write_file`]).
 pub fn write_rows<T: Serialize>(path: &std::path::Path, rows: &[T]) -> Result<()> {
-    let tmp = path.with_extension(format!("tmp-{}", std::process::id()));
+    let mut bytes = Vec::new();
     {
-        let mut w = csv::Writer::from_path(&tmp).map_err(|e| Error::io(&tmp, e.into()))?;
+        let mut w = csv::Writer::from_writer(&mut bytes);
         for row in rows {
-            w.serialize(row).map_err(|e| Error::io(&tmp, e.into()))?;
+            w.serialize(row).map_err(|e| Error::io(path, e.into()))?;
         }
-        w.flush().map_err(|e| Error::io(&tmp, e))?;
+        w.flush().map_err(|e| Error::io(path, e))?;
     }
-    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    crate::files::write_file(path, &bytes)
 }
 
 #[cfg(test)]
