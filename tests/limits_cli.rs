@@ -89,14 +89,13 @@ fn absurd_sizes_are_refused_before_any_work() {
     let mut text = std::fs::read_to_string(&huge).unwrap();
     text.push_str("\n[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [1e200]\n");
     std::fs::write(&huge, text).unwrap();
-    let out = sigmap(&[
-        "run",
-        huge.to_str().unwrap(),
-        "--out",
-        d.join("o").to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("at pose_error_scale = 1e200"));
+    let o = d.join("o");
+    let o = o.to_str().unwrap();
+    refused(
+        &["run", huge.to_str().unwrap(), "--out", o],
+        "collaborative.toml",
+        "at pose_error_scale = 1e200",
+    );
     // A profile with an absurd sigma.
     let profile = d.join("p.toml");
     std::fs::write(
@@ -113,14 +112,11 @@ fn absurd_sizes_are_refused_before_any_work() {
         &format!("{r}/experiments/profiles/collaborative.toml"),
         profile.to_str().unwrap(),
     );
-    let out = sigmap(&[
-        "run",
-        e.to_str().unwrap(),
-        "--out",
-        d.join("o").to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("sigma0 = 1e300 must be between 0 and 1"));
+    refused(
+        &["run", e.to_str().unwrap(), "--out", o],
+        "p.toml",
+        "sigma0 = 1e300 must be between 0 and 1",
+    );
     // A workspace the octree cannot hold.
     let scene = d.join("scene.toml");
     std::fs::write(
