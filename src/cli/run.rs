@@ -3,7 +3,7 @@
 
 use super::{progress_bar, with_threads, MergeArgs, RunArgs};
 use crate::error::{Error, Result};
-use crate::experiment::journal::{fingerprint, journal_record, read_journal};
+use crate::experiment::journal::{fingerprint, journal_record, read_journal, Inputs};
 use crate::experiment::model::Method;
 use crate::experiment::plots;
 use crate::experiment::runner::{
@@ -59,21 +59,34 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         // Never resume from results of other inputs.
         let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
         let same_shard = manifest.shard == format!("{shard}/{shards}");
-        if manifest.fingerprint != inputs
-            || manifest.version != env!("CARGO_PKG_VERSION")
-            || !same_shard
-        {
+        let version = env!("CARGO_PKG_VERSION");
+        let what = if manifest.version != version {
+            Some(format!(
+                "sigmap {} wrote them, this is {version}",
+                manifest.version
+            ))
+        } else if !same_shard {
+            Some(format!(
+                "they are shard {}, not {shard}/{shards}",
+                manifest.shard
+            ))
+        } else if manifest.fingerprint != inputs.fingerprint {
+            let recorded: Vec<(String, String)> = manifest.inputs.into_iter().collect();
+            let changed = inputs.changed_since(&recorded);
+            Some(if changed.is_empty() {
+                "the sweep cells changed".to_string()
+            } else {
+                format!("changed since: {}", changed.join(", "))
+            })
+        } else {
+            None
+        };
+        if let Some(what) = what {
             return Err(Error::input(
                 &manifest_path,
                 format!(
-                    "this folder holds results of other inputs, another sigmap or another shard \
-                     (experiment '{}', fingerprint {}, sigmap {}, shard {}; now {inputs}, {}, \
-                     {shard}/{shards}); rerun with --fresh to replace them, or choose another --out",
-                    manifest.experiment,
-                    manifest.fingerprint,
-                    manifest.version,
-                    manifest.shard,
-                    env!("CARGO_PKG_VERSION"),
+                    "this folder holds results of other inputs ({what}); rerun with --fresh to \
+                     replace them, or choose another --out"
                 ),
             ));
         }
@@ -275,15 +288,22 @@ fn finalize(
 fn write_manifest(
     out: &Path,
     experiment: &Experiment,
-    fingerprint: &str,
+    inputs: &Inputs,
     shard: usize,
     shards: usize,
 ) -> Result<()> {
-    let text = format!(
-        "# written by sigmap run; `sigmap merge` checks it\nexperiment = \"{}\"\nfingerprint = \"{fingerprint}\"\nversion = \"{}\"\nshard = \"{shard}/{shards}\"\n",
-        experiment.name,
+    let mut text = format!(
+        "# written by sigmap run; `sigmap run` and `sigmap merge` check it\nexperiment = {}\nfingerprint = \"{}\"\nversion = \"{}\"\nshard = \"{shard}/{shards}\"\n\n[inputs]\n",
+        toml::Value::String(experiment.name.clone()),
+        inputs.fingerprint,
         env!("CARGO_PKG_VERSION")
     );
+    for (path, hash) in &inputs.files {
+        text.push_str(&format!(
+            "{} = \"{hash}\"\n",
+            toml::Value::String(path.clone())
+        ));
+    }
     let path = out.join("run.toml");
     std::fs::write(&path, text).map_err(|e| Error::io(&path, e))
 }
@@ -292,6 +312,8 @@ fn write_manifest(
 struct Manifest {
     experiment: String,
     fingerprint: String,
+    #[serde(default)]
+    inputs: std::collections::BTreeMap<String, String>,
     version: String,
     shard: String,
 }
@@ -314,13 +336,14 @@ pub(crate) fn merge(args: MergeArgs) -> Result<()> {
     for dir in &args.shards {
         let manifest_path = dir.join("run.toml");
         let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
-        if manifest.experiment != experiment.name || manifest.fingerprint != expected {
+        if manifest.experiment != experiment.name || manifest.fingerprint != expected.fingerprint {
             return Err(Error::input(
                 &manifest_path,
                 format!(
-                    "this shard ran experiment '{}' with other inputs (fingerprint {} vs {expected}); merge only shards of {}",
+                    "this shard ran experiment '{}' with other inputs (fingerprint {} vs {}); merge only shards of {}",
                     manifest.experiment,
                     manifest.fingerprint,
+                    expected.fingerprint,
                     args.experiment.display()
                 ),
             ));

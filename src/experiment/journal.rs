@@ -16,24 +16,61 @@ fn fnv(hash: u64, bytes: &[u8]) -> u64 {
 
 const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
-/// A fingerprint of everything the runs of `cells` (one loaded experiment per
-/// sweep cell) read: each cell's sweep values, experiment, profile, scene and
-/// mesh files and robot description, and sigmap's version.
-pub fn fingerprint(cells: &[Experiment]) -> Result<String> {
+/// What the runs of an experiment read: one hash over everything, and one
+/// per input file (to say which changed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Inputs {
+    /// Hash of every file, the sweep cells and sigmap's version.
+    pub fingerprint: String,
+    /// Each file read (in first-use order, once) and its hash.
+    pub files: Vec<(String, String)>,
+}
+
+impl Inputs {
+    /// The files whose hash differs from `recorded` (or that one side lacks).
+    pub fn changed_since(&self, recorded: &[(String, String)]) -> Vec<String> {
+        let mut changed: Vec<String> = self
+            .files
+            .iter()
+            .filter(|f| !recorded.contains(f))
+            .map(|(p, _)| p.clone())
+            .collect();
+        changed.extend(
+            recorded
+                .iter()
+                .filter(|(p, _)| !self.files.iter().any(|(q, _)| q == p))
+                .map(|(p, _)| format!("{p} (no longer read)")),
+        );
+        changed
+    }
+}
+
+/// The inputs of the runs of `cells` (one loaded experiment per sweep
+/// cell): each cell's sweep values, experiment, profile, scene and mesh
+/// files and robot description, and sigmap's version.
+pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
     let mut hash = fnv(FNV_OFFSET, env!("CARGO_PKG_VERSION").as_bytes());
+    let mut files: Vec<(String, String)> = Vec::new();
     for cell in cells {
         hash = fnv(hash, Experiment::cell_label(&cell.cell).as_bytes());
-        let files = [&cell.source, &cell.profile.source, &cell.robot.source]
+        let paths = [&cell.source, &cell.profile.source, &cell.robot.source]
             .into_iter()
             .chain(&cell.scene.inputs);
-        for path in files {
+        for path in paths {
             let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-            hash = fnv(hash, path.to_string_lossy().as_bytes());
+            // Content only: the same files named from another folder match.
+            let name = path.to_string_lossy().into_owned();
             hash = fnv(hash, &(bytes.len() as u64).to_le_bytes());
             hash = fnv(hash, &bytes);
+            if !files.iter().any(|(p, _)| *p == name) {
+                files.push((name, format!("{:016x}", fnv(FNV_OFFSET, &bytes))));
+            }
         }
     }
-    Ok(format!("{hash:016x}"))
+    Ok(Inputs {
+        fingerprint: format!("{hash:016x}"),
+        files,
+    })
 }
 
 /// The journal record of one finished run: its rows as CSV lines, a
