@@ -74,10 +74,16 @@ fn label(v: f64, log: bool) -> String {
     }
 }
 
-/// Writes side-by-side panels into an SVG file.
+/// Writes side-by-side panels into an SVG file (staged, then renamed).
 pub fn panels(path: &Path, panels: &[Panel]) -> Result<()> {
+    let mut svg = String::new();
+    draw_panels(&mut svg, path, panels)?;
+    crate::files::write_file(path, svg.as_bytes())
+}
+
+fn draw_panels(svg: &mut String, path: &Path, panels: &[Panel]) -> Result<()> {
     let width = 560 * panels.len().max(1) as u32;
-    let root = SVGBackend::new(path, (width, 420)).into_drawing_area();
+    let root = SVGBackend::with_string(svg, (width, 420)).into_drawing_area();
     let err = |e: &dyn std::fmt::Display| Error::input(path, format!("cannot draw the chart: {e}"));
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let areas = root.split_evenly((1, panels.len().max(1)));

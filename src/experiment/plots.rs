@@ -288,6 +288,19 @@ pub fn plot_slice(
     workspace: &Bounds,
     z: f64,
 ) -> Result<()> {
+    let mut svg = String::new();
+    draw_slice(&mut svg, path, truth, maps, workspace, z)?;
+    crate::files::write_file(path, svg.as_bytes())
+}
+
+fn draw_slice(
+    svg: &mut String,
+    path: &Path,
+    truth: &Octree,
+    maps: &[(Method, &Octree)],
+    workspace: &Bounds,
+    z: f64,
+) -> Result<()> {
     let err = |e: &dyn std::fmt::Display| Error::input(path, format!("cannot draw the slice: {e}"));
     let res = truth.resolution();
     let (nx, ny) = (
@@ -300,7 +313,8 @@ pub fn plot_slice(
     let step = (nx.max(ny) / MAX_SLICE_CELLS).ceil().max(1.0);
     let (nx, ny) = ((nx / step).ceil() as usize, (ny / step).ceil() as usize);
     let cell = res * step;
-    let root = SVGBackend::new(path, (460 * maps.len().max(1) as u32, 500)).into_drawing_area();
+    let root =
+        SVGBackend::with_string(svg, (460 * maps.len().max(1) as u32, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let colours = [
         ("occupied, correct", RGBColor(30, 30, 30)),
