@@ -27,6 +27,8 @@ pub(crate) fn run(args: GroundTruthArgs) -> Result<()> {
     let scene = Scene::load(&args.scene)?;
     crate::mapping::octree::check_span(scene.workspace.reach(), args.resolution)
         .map_err(|e| Error::input(&args.scene, e))?;
+    crate::mapping::octree::check_cells(scene.workspace.extent(), args.resolution)
+        .map_err(|e| Error::input(&args.scene, e))?;
     let start = Instant::now();
     let truth = voxelise(&scene, args.resolution);
     let seconds = start.elapsed().as_secs_f64();

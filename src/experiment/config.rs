@@ -355,6 +355,8 @@ impl Experiment {
         }
         crate::mapping::octree::check_span(scene.workspace.reach(), file.resolution)
             .map_err(|e| Error::input(&scene.source, e))?;
+        crate::mapping::octree::check_cells(scene.workspace.extent(), file.resolution)
+            .map_err(|e| Error::input(&scene.source, e))?;
         let mut experiment = Self {
             name: file.name.unwrap_or_else(|| crate::sim::scene::stem(path)),
             description: file.description,

@@ -103,6 +103,23 @@ pub fn check_span(reach: f64, resolution: f64) -> Result<(), String> {
     ))
 }
 
+/// Most cells a workspace may hold at the map's resolution (the ground
+/// truth and the observable mask walk them: about 2 minutes at 2³¹).
+pub const MAX_WORKSPACE_CELLS: f64 = 2_147_483_648.0;
+
+/// Checks that a workspace of `extent` metres per axis holds at most
+/// [`MAX_WORKSPACE_CELLS`] cells of edge `resolution`.
+pub fn check_cells(extent: [f64; 3], resolution: f64) -> Result<(), String> {
+    let cells: f64 = extent.iter().map(|e| (e / resolution).ceil()).product();
+    if cells <= MAX_WORKSPACE_CELLS {
+        return Ok(());
+    }
+    Err(format!(
+        "the workspace holds {cells:.3e} cells of {resolution} m; sigmap handles at most \
+         {MAX_WORKSPACE_CELLS:.3e} (use a coarser resolution or a smaller workspace)"
+    ))
+}
+
 /// OctoMap's hit update, `logodds(0.7)` = 0.8473 (MATH.md §4.2), bit-exact.
 pub const LOG_ODDS_HIT: f32 = f32::from_bits(0x3f58_e883);
 /// OctoMap's miss update, `logodds(0.4)` = −0.4055, bit-exact.

@@ -25,6 +25,11 @@ pub struct Bounds {
 }
 
 impl Bounds {
+    /// The box's edge lengths (m).
+    pub fn extent(&self) -> [f64; 3] {
+        (self.max - self.min).into()
+    }
+
     /// The largest distance of the box from the origin along any axis (m).
     pub fn reach(&self) -> f64 {
         self.min
