@@ -138,6 +138,29 @@ fn absurd_sizes_are_refused_before_any_work() {
         "scene.toml",
         "the map spans only",
     );
+    let wide = d.join("wide.toml");
+    std::fs::write(
+        &wide,
+        std::fs::read_to_string(&scene).unwrap().replacen(
+            "max = [1e6, 0.4, 0.36]",
+            "max = [10.0, 10.0, 0.36]",
+            1,
+        ),
+    )
+    .unwrap();
+    let gt = d.join("gt.bt");
+    refused(
+        &[
+            "ground-truth",
+            wide.to_str().unwrap(),
+            "--resolution",
+            "0.001",
+            "--out",
+            gt.to_str().unwrap(),
+        ],
+        "wide.toml",
+        "cells of 0.001 m",
+    );
     // Flags.
     let q = "experiments/quickstart.toml";
     refused(
