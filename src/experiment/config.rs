@@ -29,6 +29,8 @@ struct ExperimentFile {
     risk: Option<f64>,
     #[serde(default)]
     grid_offset: bool,
+    #[serde(default)]
+    beam_pooling: bool,
     seeds: Option<Vec<u64>>,
     methods: Option<Vec<String>>,
     robot: MountSpec,
@@ -160,6 +162,9 @@ pub struct Experiment {
     /// Whether the scene sits at a sub-voxel offset drawn from each run's seed
     /// (`grid_offset = true`), so that no face lies on a cell plane by design.
     pub grid_offset: bool,
+    /// Pool each viewpoint's beams on the plane they share before the cell
+    /// model (`beam_pooling = true`; docs/math.md §5.5). OPDF methods only.
+    pub beam_pooling: bool,
     /// The seeds of `sigmap run` (`seeds = [..]`, default `[seed]`).
     pub seeds: Vec<u64>,
     /// The modelling methods compared by `sigmap run`
@@ -365,6 +370,7 @@ impl Experiment {
             resolution: file.resolution,
             risk: file.risk,
             grid_offset: file.grid_offset,
+            beam_pooling: file.beam_pooling,
             seeds,
             methods,
             scene,

@@ -6,6 +6,7 @@ use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Vector3};
 use crate::mapping::chord::CellModel;
 use crate::mapping::merge::{merge, MergeOptions};
+use crate::mapping::pooling::pool_ranges;
 use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::BeamEnd;
@@ -132,25 +133,56 @@ pub fn beam_ends(
         .rotation
         .to_rotation_matrix()
         .into_inner();
-    let range = &experiment.profile.range;
+    let points = measured_points(experiment, scan);
     scan.measurements
         .par_iter()
         .zip(experiment.scanner.directions.par_iter())
-        .filter_map(|(m, d)| match m.status {
-            BeamStatus::Hit => {
-                let g = propagator.propagate(&UncertainPoint {
-                    mean: d * m.range,
-                    covariance: range.point_covariance(d, m.range),
-                });
+        .zip(points.par_iter())
+        .filter_map(|((m, d), point)| match (m.status, point) {
+            (BeamStatus::Hit, Some(point)) => {
+                let g = propagator.propagate(point);
                 Some(BeamEnd::Hit {
                     point: g.mean,
                     covariance: g.covariance,
                 })
             }
-            BeamStatus::NoReturn => Some(BeamEnd::Miss {
+            (BeamStatus::NoReturn, _) => Some(BeamEnd::Miss {
                 direction: rotation * d,
             }),
-            BeamStatus::TooClose | BeamStatus::Dropout => None,
+            _ => None,
+        })
+        .collect()
+}
+
+/// The measured point of each beam in the camera frame with its covariance
+/// (`None` without a hit): the raw range, or with `beam_pooling` the range
+/// pooled on the viewpoint's local plane (docs/math.md §5.5).
+pub fn measured_points(experiment: &Experiment, scan: &Scan) -> Vec<Option<UncertainPoint>> {
+    let range = &experiment.profile.range;
+    let directions = &experiment.scanner.directions;
+    let ranges: Vec<Option<f64>> = scan
+        .measurements
+        .iter()
+        .map(|m| (m.status == BeamStatus::Hit).then_some(m.range))
+        .collect();
+    let pooled = if experiment.beam_pooling {
+        pool_ranges(experiment.scanner.columns, directions, &ranges, |r| {
+            range.sigma(r)
+        })
+    } else {
+        ranges
+            .iter()
+            .map(|r| r.map(|r| (r, range.sigma(r))))
+            .collect()
+    };
+    pooled
+        .iter()
+        .zip(directions)
+        .map(|(p, d)| {
+            p.map(|(r, sigma)| UncertainPoint {
+                mean: d * r,
+                covariance: range.point_covariance_with(d, r, sigma),
+            })
         })
         .collect()
 }
@@ -162,18 +194,12 @@ pub fn beam_ends_with_truth(
     scan: &Scan,
     propagator: &dyn Propagator,
 ) -> Vec<(Vector3, crate::geometry::Matrix3)> {
-    let range = &experiment.profile.range;
-    scan.measurements
+    measured_points(experiment, scan)
         .iter()
-        .zip(&experiment.scanner.directions)
         .zip(&scan.truth.beams)
-        .filter(|((m, _), _)| m.status == BeamStatus::Hit)
-        .map(|((m, d), t)| {
-            let g = propagator.propagate(&UncertainPoint {
-                mean: d * m.range,
-                covariance: range.point_covariance(d, m.range),
-            });
-            (t.point.coords - g.mean, g.covariance)
+        .filter_map(|(point, t)| {
+            let g = propagator.propagate(point.as_ref()?);
+            Some((t.point.coords - g.mean, g.covariance))
         })
         .collect()
 }

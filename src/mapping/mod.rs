@@ -6,6 +6,7 @@ pub mod merge;
 pub mod octomap_io;
 pub mod octree;
 pub mod opdf;
+pub mod pooling;
 pub mod ray_update;
 pub mod shared_motion;
 pub mod spherical;

@@ -189,8 +189,12 @@ impl RangeModel {
     /// Covariance of the measured point `r d` in the laser frame (MATH.md §4.5):
     /// `σ_r² d dᵀ + r² σ_a² (I − d dᵀ)` for a unit direction `d`.
     pub fn point_covariance(&self, direction: &Vector3, r: f64) -> Matrix3 {
+        self.point_covariance_with(direction, r, self.sigma(r))
+    }
+
+    /// The same with the range standard deviation `sr` given (a pooled range).
+    pub fn point_covariance_with(&self, direction: &Vector3, r: f64, sr: f64) -> Matrix3 {
         let ddt = direction * direction.transpose();
-        let sr = self.sigma(r);
         ddt * (sr * sr)
             + (Matrix3::identity() - ddt) * (r * r * self.angular_sigma * self.angular_sigma)
     }

@@ -1,0 +1,163 @@
+//! Pooling a viewpoint's beams on the surface they share (docs/math.md §5.5).
+//!
+//! The range noise of neighbouring beams is independent while the surface
+//! they hit is (locally) one plane: a least-squares plane through a beam's
+//! 3×3 raster neighbourhood, with points more than 3σ off the plane
+//! rejected, estimates where the beam met the surface with variance
+//! ≈ σ²/n instead of σ². A beam whose own range disagrees with the plane (an
+//! edge, a second surface) keeps its measurement.
+
+use crate::geometry::{Matrix3, Vector3};
+
+/// A beam's pooled range and its standard deviation (m), or `None` for a
+/// beam without a hit.
+pub type Pooled = Option<(f64, f64)>;
+
+/// Pools the hits of one viewpoint. `ranges[k]` is beam k's measured range
+/// (`None`: no hit), `directions[k]` its unit direction, beams row by row
+/// with `columns` per row; `sigma(r)` is the range noise at range r.
+pub fn pool_ranges(
+    columns: usize,
+    directions: &[Vector3],
+    ranges: &[Option<f64>],
+    sigma: impl Fn(f64) -> f64,
+) -> Vec<Pooled> {
+    let rows = ranges.len() / columns.max(1);
+    let mut out = Vec::with_capacity(ranges.len());
+    let mut points: Vec<(Vector3, f64)> = Vec::with_capacity(9);
+    for k in 0..ranges.len() {
+        let Some(r) = ranges[k] else {
+            out.push(None);
+            continue;
+        };
+        let own_sigma = sigma(r);
+        let (row, col) = ((k / columns) as i64, (k % columns) as i64);
+        points.clear();
+        for dr in -1..=1i64 {
+            for dc in -1..=1i64 {
+                let (rr, cc) = (row + dr, col + dc);
+                if rr < 0 || cc < 0 || rr >= rows as i64 || cc >= columns as i64 {
+                    continue;
+                }
+                let j = rr as usize * columns + cc as usize;
+                if let Some(rj) = ranges[j] {
+                    points.push((directions[j] * rj, sigma(rj)));
+                }
+            }
+        }
+        out.push(Some(pool_one(&points, &directions[k], r, own_sigma)));
+    }
+    out
+}
+
+/// χ² 99% quantiles for 1–6 degrees of freedom: a neighbourhood is one
+/// plane plus noise only if its residuals pass this test.
+const CHI2_99: [f64; 6] = [6.635, 9.210, 11.345, 13.277, 15.086, 16.812];
+
+/// The pooled (range, σ) of a beam along `direction` measured at `r`, from
+/// the points of its neighbourhood (itself included). Only a neighbourhood
+/// that is one plane plus noise (χ² test of the residuals at 99%, at least
+/// 5 points) is pooled; anything else (an edge, a second surface, a corner)
+/// keeps the raw range. Dropping points until the test passes would bias
+/// the variance; refusing does not.
+fn pool_one(points: &[(Vector3, f64)], direction: &Vector3, r: f64, sigma: f64) -> (f64, f64) {
+    let raw = (r, sigma);
+    let own = direction * r;
+    let kept = points;
+    {
+        if kept.len() < 5 {
+            return raw;
+        }
+        let Some(plane) = fit_plane(kept.iter().map(|p| p.0)) else {
+            return raw;
+        };
+        let normalised: Vec<f64> = kept
+            .iter()
+            .map(|(p, s)| {
+                plane.distance(p) / (s * plane.normal.dot(&p.normalize()).abs().max(1e-3))
+            })
+            .collect();
+        let chi2: f64 = normalised.iter().map(|x| x * x).sum();
+        if chi2 <= CHI2_99[kept.len() - 4] {
+            let along = plane.normal.dot(direction);
+            let own_off = plane.distance(&own) / (sigma * along.abs().max(1e-3));
+            if own_off.abs() > 3.0 || along.abs() < 0.1 {
+                return raw;
+            }
+            let pooled = plane.normal.dot(&plane.centroid) / along;
+            if !(pooled.is_finite() && pooled > 0.0) {
+                return raw;
+            }
+            // Regression prediction variance of the plane at the beam's
+            // crossing, along the normal, then along the beam.
+            let n = kept.len() as f64;
+            let normal_variance = kept
+                .iter()
+                .map(|(p, s)| (s * plane.normal.dot(&p.normalize())).powi(2))
+                .sum::<f64>()
+                / n;
+            let offset = direction * pooled - plane.centroid;
+            let spread = plane
+                .in_plane
+                .iter()
+                .map(|(axis, scatter)| offset.dot(axis).powi(2) / scatter)
+                .sum::<f64>();
+            let variance = normal_variance * (1.0 / n + spread) / (along * along);
+            return (pooled, variance.sqrt());
+        }
+        raw
+    }
+}
+
+struct Plane {
+    centroid: Vector3,
+    normal: Vector3,
+    /// The two in-plane axes and the points' scatter along each.
+    in_plane: [(Vector3, f64); 2],
+}
+
+impl Plane {
+    fn distance(&self, p: &Vector3) -> f64 {
+        self.normal.dot(&(p - self.centroid))
+    }
+}
+
+/// The total-least-squares plane of ≥ 4 points (`None` when they are
+/// degenerate: all on a line).
+fn fit_plane(points: impl Iterator<Item = Vector3> + Clone) -> Option<Plane> {
+    let n = points.clone().count();
+    if n < 4 {
+        return None;
+    }
+    let centroid = points.clone().fold(Vector3::zeros(), |a, p| a + p) / n as f64;
+    let scatter = points.fold(Matrix3::zeros(), |a, p| {
+        let d = p - centroid;
+        a + d * d.transpose()
+    });
+    let eig = scatter.symmetric_eigen();
+    let (mut min, mut second) = (0, 1);
+    for i in 0..3 {
+        if eig.eigenvalues[i] < eig.eigenvalues[min] {
+            min = i;
+        }
+    }
+    for i in 0..3 {
+        if i != min && (second == min || eig.eigenvalues[i] < eig.eigenvalues[second]) {
+            second = i;
+        }
+    }
+    // A line of points (second-smallest spread ~0) does not fix a plane.
+    if eig.eigenvalues[second] <= 1e-12 {
+        return None;
+    }
+    let third = 3 - min - second;
+    let axis = |i: usize| (eig.eigenvectors.column(i).into_owned(), eig.eigenvalues[i]);
+    Some(Plane {
+        centroid,
+        normal: eig.eigenvectors.column(min).into_owned(),
+        in_plane: [axis(second), axis(third)],
+    })
+}
+
+#[cfg(test)]
+mod tests;
