@@ -366,4 +366,40 @@ mod tests {
         let (unscented, correlated) = maps(&experiment);
         assert_eq!(unscented, correlated);
     }
+
+    #[test]
+    fn pooling_narrows_most_hits_and_only_when_asked() {
+        let path = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/experiments/quickstart.toml"
+        ));
+        let mut experiment = Experiment::load(path).unwrap();
+        let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+        let scan = &run.scans[0];
+        let along = |e: &Experiment| -> Vec<(f64, f64)> {
+            measured_points(e, scan)
+                .iter()
+                .zip(&e.scanner.directions)
+                .filter_map(|(p, d)| {
+                    let p = p.as_ref()?;
+                    Some((
+                        p.mean.norm(),
+                        (d.transpose() * p.covariance * d)[(0, 0)].sqrt(),
+                    ))
+                })
+                .collect()
+        };
+        let sigma = |r: f64| experiment.profile.range.sigma(r);
+        let raw = along(&experiment);
+        assert!(raw.iter().all(|(r, s)| (s - sigma(*r)).abs() < 1e-12));
+        experiment.beam_pooling = true;
+        let pooled = along(&experiment);
+        assert_eq!(pooled.len(), raw.len());
+        let narrowed = pooled.iter().filter(|(r, s)| *s < 0.6 * sigma(*r)).count();
+        assert!(
+            narrowed * 2 > pooled.len(),
+            "{narrowed} of {} hits pooled",
+            pooled.len()
+        );
+    }
 }
