@@ -321,6 +321,14 @@ mod tests {
     use crate::uncertainty::UncertainPose;
     use std::path::Path;
 
+    fn quickstart() -> Experiment {
+        Experiment::load(Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/experiments/quickstart.toml"
+        )))
+        .unwrap()
+    }
+
     #[test]
     fn the_chain_splits_into_shared_and_per_viewpoint_links() {
         let pose = |s: f64| {
@@ -345,11 +353,7 @@ mod tests {
 
     #[test]
     fn without_shared_error_the_correlated_map_is_the_unscented_map() {
-        let path = Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/experiments/quickstart.toml"
-        ));
-        let mut experiment = Experiment::load(path).unwrap();
+        let mut experiment = quickstart();
         let offset = Vector3::zeros();
         let maps = |experiment: &Experiment| {
             let run = super::super::simulate(experiment, 1, |_| {}).unwrap();
@@ -369,11 +373,7 @@ mod tests {
 
     #[test]
     fn pooling_narrows_most_hits_and_only_when_asked() {
-        let path = Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/experiments/quickstart.toml"
-        ));
-        let mut experiment = Experiment::load(path).unwrap();
+        let mut experiment = quickstart();
         let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
         let scan = &run.scans[0];
         let along = |e: &Experiment| -> Vec<(f64, f64)> {
