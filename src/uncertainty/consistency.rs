@@ -74,7 +74,7 @@ pub struct ConsistencyReport {
 impl ConsistencyReport {
     /// From predicted covariances and the true errors (truth − predicted mean).
     /// The errors must be independent for the χ² bounds to hold: points of one
-    /// viewpoint share its pose error (MATH.md §6.6).
+    /// viewpoint share its pose error (docs/math.md §6.6).
     pub fn new<'a>(pairs: impl IntoIterator<Item = (Vector3, &'a Matrix3)>) -> Self {
         let mut n = 0usize;
         let mut sum = 0.0;
