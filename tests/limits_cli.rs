@@ -22,6 +22,32 @@ fn experiment(dir: &Path, name: &str, from: &str, to: &str) -> PathBuf {
     path
 }
 
+/// `src` (a repository path, or an absolute one) with each `(from, to)`
+/// replaced once, written to `dst`.
+fn edited(src: impl AsRef<Path>, dst: &Path, edits: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(root().join(src)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{from}");
+        text = text.replacen(from, to, 1);
+    }
+    std::fs::write(dst, text).unwrap();
+    dst.to_path_buf()
+}
+
+/// The tabletop scene (its mesh by absolute path) with `edits`, at `dst`.
+fn tabletop(dst: &Path, mesh: &str, edits: &[(&str, &str)]) -> PathBuf {
+    let mut all = vec![("meshes/bunny.obj", mesh)];
+    all.extend_from_slice(edits);
+    edited("scenes/tabletop.toml", dst, &all)
+}
+
+/// The quickstart experiment reading `file` instead of the shipped `input`
+/// (a repository path).
+fn experiment_with(dir: &Path, name: &str, input: &str, file: &Path) -> PathBuf {
+    let shipped = root().join(input).display().to_string();
+    experiment(dir, name, &shipped, file.to_str().unwrap())
+}
+
 /// Runs sigmap and checks: exit 2, one line on stderr naming `names` and
 /// saying `says`.
 fn refused(args: &[&str], names: &str, says: &str) {
@@ -97,20 +123,16 @@ fn absurd_sizes_are_refused_before_any_work() {
         "at pose_error_scale = 1e200",
     );
     // A profile with an absurd sigma.
-    let profile = d.join("p.toml");
-    std::fs::write(
-        &profile,
-        std::fs::read_to_string(root().join("experiments/profiles/collaborative.toml"))
-            .unwrap()
-            .replacen("sigma0 = 0.001", "sigma0 = 1e300", 1),
-    )
-    .unwrap();
-    let r = root().display().to_string();
-    let e = experiment(
+    let profile = edited(
+        "experiments/profiles/collaborative.toml",
+        &d.join("p.toml"),
+        &[("sigma0 = 0.001", "sigma0 = 1e300")],
+    );
+    let e = experiment_with(
         d,
         "huge_sigma",
-        &format!("{r}/experiments/profiles/collaborative.toml"),
-        profile.to_str().unwrap(),
+        "experiments/profiles/collaborative.toml",
+        &profile,
     );
     refused(
         &["run", e.to_str().unwrap(), "--out", o],
@@ -118,36 +140,17 @@ fn absurd_sizes_are_refused_before_any_work() {
         "sigma0 = 1e300 must be between 0 and 1",
     );
     // A workspace the octree cannot hold.
-    let scene = d.join("scene.toml");
-    std::fs::write(
-        &scene,
-        std::fs::read_to_string(root().join("scenes/tabletop.toml"))
-            .unwrap()
-            .replace("meshes/bunny.obj", &format!("{r}/scenes/meshes/bunny.obj"))
-            .replacen("max = [0.4, 0.4, 0.36]", "max = [1e6, 0.4, 0.36]", 1),
-    )
-    .unwrap();
-    let e = experiment(
-        d,
-        "huge_ws",
-        &format!("{r}/scenes/tabletop.toml"),
-        scene.to_str().unwrap(),
-    );
+    let bunny = root().join("scenes/meshes/bunny.obj");
+    let huge_ws = ("max = [0.4, 0.4, 0.36]", "max = [1e6, 0.4, 0.36]");
+    let scene = tabletop(&d.join("scene.toml"), bunny.to_str().unwrap(), &[huge_ws]);
+    let e = experiment_with(d, "huge_ws", "scenes/tabletop.toml", &scene);
     refused(
         &["run", e.to_str().unwrap()],
         "scene.toml",
         "the map spans only",
     );
-    let wide = d.join("wide.toml");
-    std::fs::write(
-        &wide,
-        std::fs::read_to_string(&scene).unwrap().replacen(
-            "max = [1e6, 0.4, 0.36]",
-            "max = [10.0, 10.0, 0.36]",
-            1,
-        ),
-    )
-    .unwrap();
+    let wide = ("max = [0.4, 0.4, 0.36]", "max = [10.0, 10.0, 0.36]");
+    let wide = tabletop(&d.join("wide.toml"), bunny.to_str().unwrap(), &[wide]);
     let gt = d.join("gt.bt");
     refused(
         &[
@@ -192,21 +195,8 @@ fn bad_files_are_named_in_one_line() {
     {
         let mesh = d.join("zero.obj");
         std::os::unix::fs::symlink("/dev/zero", &mesh).unwrap();
-        let r = root().display().to_string();
-        let scene = d.join("scene.toml");
-        std::fs::write(
-            &scene,
-            std::fs::read_to_string(root().join("scenes/tabletop.toml"))
-                .unwrap()
-                .replace("meshes/bunny.obj", mesh.to_str().unwrap()),
-        )
-        .unwrap();
-        let e = experiment(
-            d,
-            "zero",
-            &format!("{r}/scenes/tabletop.toml"),
-            scene.to_str().unwrap(),
-        );
+        let scene = tabletop(&d.join("scene.toml"), mesh.to_str().unwrap(), &[]);
+        let e = experiment_with(d, "zero", "scenes/tabletop.toml", &scene);
         refused(
             &["run", e.to_str().unwrap()],
             "zero.obj",
@@ -215,39 +205,26 @@ fn bad_files_are_named_in_one_line() {
     }
     // URDFs: a cycle, and a revolute joint without limits.
     let urdf = std::fs::read_to_string(root().join("robots/ur5.urdf")).unwrap();
-    let cycle = d.join("cycle.urdf");
-    std::fs::write(
-        &cycle,
-        urdf.replace(
+    let cycle = edited(
+        "robots/ur5.urdf",
+        &d.join("cycle.urdf"),
+        &[(
             "</robot>",
             "<link name=\"a\"/><link name=\"b\"/>\
              <joint name=\"ab\" type=\"fixed\"><parent link=\"a\"/><child link=\"b\"/></joint>\
              <joint name=\"ba\" type=\"fixed\"><parent link=\"b\"/><child link=\"a\"/></joint></robot>",
-        ),
-    )
-    .unwrap();
-    let r = root().display().to_string();
-    let e = experiment(
-        d,
-        "cycle",
-        &format!("{r}/robots/ur5.urdf"),
-        cycle.to_str().unwrap(),
+        )],
     );
+    let e = experiment_with(d, "cycle", "robots/ur5.urdf", &cycle);
     refused(&["run", e.to_str().unwrap()], "cycle.urdf", "cycle");
-    let nolimit = d.join("nolimit.urdf");
     let first_limit = urdf.find("<limit").unwrap();
     let end = first_limit + urdf[first_limit..].find("/>").unwrap() + 2;
-    std::fs::write(
-        &nolimit,
-        format!("{}{}", &urdf[..first_limit], &urdf[end..]),
-    )
-    .unwrap();
-    let e = experiment(
-        d,
-        "nolimit",
-        &format!("{r}/robots/ur5.urdf"),
-        nolimit.to_str().unwrap(),
+    let nolimit = edited(
+        "robots/ur5.urdf",
+        &d.join("nolimit.urdf"),
+        &[(&urdf[first_limit..end], "")],
     );
+    let e = experiment_with(d, "nolimit", "robots/ur5.urdf", &nolimit);
     refused(
         &["run", e.to_str().unwrap()],
         "nolimit.urdf",

@@ -4,6 +4,7 @@
 use super::run::{finished_runs, shard_runs};
 use super::{StatusArgs, SubmitArgs};
 use crate::error::{Error, Result};
+use crate::experiment::journal::Wanted;
 use crate::experiment::Experiment;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -46,7 +47,12 @@ fn progress(experiment: &Experiment, out: &Path, tasks: usize) -> Result<Vec<Sha
     (1..=tasks)
         .map(|shard| {
             let dir = shard_dir(out, shard);
-            let done = finished_runs(&dir, &experiment.methods)?;
+            let wanted = Wanted {
+                cells: &labels,
+                seeds: &experiment.seeds,
+                methods: &experiment.methods,
+            };
+            let done = finished_runs(&dir, &wanted)?;
             let expected = shard_runs(labels.len(), &experiment.seeds, shard, tasks);
             let missing = expected
                 .iter()

@@ -32,9 +32,6 @@ pub(crate) fn run(args: GroundTruthArgs) -> Result<()> {
     let start = Instant::now();
     let truth = voxelise(&scene, args.resolution);
     let seconds = start.elapsed().as_secs_f64();
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
     write_octree(&args.out, &truth, Clamp::OCTOMAP)?;
     let (occupied, free) = cell_counts(&truth);
     eprintln!(

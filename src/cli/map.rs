@@ -7,7 +7,6 @@ use crate::experiment::model::{build_map, ray_inputs};
 use crate::experiment::{self, Experiment, SimulatedRun};
 use crate::mapping::octomap_io::write_octree;
 use crate::mapping::Clamp;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -48,9 +47,6 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         )
     })??;
     let seconds = start.elapsed().as_secs_f64();
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
     write_octree(&out, &tree, Clamp::OCTOMAP)?;
     let stats = tree.stats();
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
@@ -95,6 +91,5 @@ pub fn export_rays(path: &Path, experiment: &Experiment, run: &SimulatedRun) -> 
             }
         }
     }
-    let mut file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-    file.write_all(&out).map_err(|e| Error::io(path, e))
+    crate::files::write_file(path, &out)
 }

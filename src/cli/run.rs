@@ -3,7 +3,7 @@
 
 use super::{progress_bar, with_threads, MergeArgs, RunArgs};
 use crate::error::{Error, Result};
-use crate::experiment::journal::{fingerprint, journal_record, read_journal, Inputs};
+use crate::experiment::journal::{fingerprint, journal_record, read_journal, Inputs, Wanted};
 use crate::experiment::model::Method;
 use crate::experiment::plots;
 use crate::experiment::runner::{
@@ -94,34 +94,21 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     // Finished runs: the sorted file and the journal of an interrupted run.
     // A run counts only with a row for every method; rows of runs, methods or
     // cells the experiment does not have are dropped, and so are repeats.
+    let wanted = Wanted {
+        cells: &labels,
+        seeds: &experiment.seeds,
+        methods: &experiment.methods,
+    };
     let mut rows: Vec<RunRow> = read_rows(&runs_path)?;
     let (journal_rows, journal_timings) = read_journal(&journal_path)?;
     rows.extend(journal_rows);
-    let methods: Vec<&str> = experiment.methods.iter().map(|m| m.as_str()).collect();
-    let mut seen = BTreeSet::new();
-    rows.retain(|r| {
-        labels.contains(&r.cell)
-            && experiment.seeds.contains(&r.seed)
-            && methods.contains(&r.method.as_str())
-            && seen.insert((r.cell.clone(), r.seed, r.method.clone()))
-    });
-    let mut per_run = std::collections::BTreeMap::<(String, u64), usize>::new();
-    for r in &rows {
-        *per_run.entry((r.cell.clone(), r.seed)).or_default() += 1;
-    }
-    let done: BTreeSet<(String, u64)> = per_run
-        .into_iter()
-        .filter(|(_, n)| *n == methods.len())
-        .map(|(run, _)| run)
-        .collect();
+    wanted.keep(&mut rows);
+    let done = wanted.complete(&rows);
     rows.retain(|r| done.contains(&(r.cell.clone(), r.seed)));
     let mut timings: Vec<TimingRow> = read_rows(&timings_path)?;
     timings.extend(journal_timings);
-    let mut seen = BTreeSet::new();
-    timings.retain(|t| {
-        done.contains(&(t.cell.clone(), t.seed))
-            && seen.insert((t.cell.clone(), t.seed, t.method.clone()))
-    });
+    wanted.keep(&mut timings);
+    timings.retain(|t| done.contains(&(t.cell.clone(), t.seed)));
     let mine = shard_runs(cells.len(), &experiment.seeds, shard, shards);
     let pending: Vec<(usize, u64)> = mine
         .iter()
@@ -221,22 +208,12 @@ pub(crate) fn shard_runs(
 
 /// The finished runs (cell label, seed) recorded in a run folder: its
 /// runs.csv and the whole records of the journal of an interrupted run. A
-/// run is finished when it has a row for every one of `methods`.
-pub(crate) fn finished_runs(dir: &Path, methods: &[Method]) -> Result<BTreeSet<(String, u64)>> {
+/// run is finished when it has a row for every method it is `wanted` with.
+pub(crate) fn finished_runs(dir: &Path, wanted: &Wanted) -> Result<BTreeSet<(String, u64)>> {
     let mut rows: Vec<RunRow> = read_rows(&dir.join("runs.csv"))?;
     rows.extend(read_journal(&dir.join("runs.journal.csv"))?.0);
-    let mut per_run = std::collections::BTreeMap::<(String, u64), BTreeSet<String>>::new();
-    for r in rows {
-        per_run
-            .entry((r.cell, r.seed))
-            .or_default()
-            .insert(r.method);
-    }
-    Ok(per_run
-        .into_iter()
-        .filter(|(_, have)| methods.iter().all(|m| have.contains(m.as_str())))
-        .map(|(run, _)| run)
-        .collect())
+    wanted.keep(&mut rows);
+    Ok(wanted.complete(&rows))
 }
 
 /// Sorts the rows into the one order every machine agrees on (cell, seed,
@@ -282,8 +259,6 @@ fn finalize(
     Ok(summary)
 }
 
-/// FNV-1a over the bytes of every input file of the experiment: shards of
-/// different experiments (or edited inputs) do not merge.
 /// `run.toml`: which experiment, inputs, version and shard produced a folder.
 fn write_manifest(
     out: &Path,
@@ -304,8 +279,7 @@ fn write_manifest(
             toml::Value::String(path.clone())
         ));
     }
-    let path = out.join("run.toml");
-    std::fs::write(&path, text).map_err(|e| Error::io(&path, e))
+    crate::files::write_file(&out.join("run.toml"), text.as_bytes())
 }
 
 #[derive(serde::Deserialize)]
@@ -367,18 +341,13 @@ pub(crate) fn merge(args: MergeArgs) -> Result<()> {
     }
     // Only this experiment's runs, each once (a run in two shards, or in a
     // shard's runs.csv and its journal, counts once).
-    let methods: Vec<&str> = experiment.methods.iter().map(|m| m.as_str()).collect();
-    let ours = |cell: &String, seed: &u64, method: &str| {
-        labels.contains(cell) && experiment.seeds.contains(seed) && methods.contains(&method)
+    let wanted = Wanted {
+        cells: &labels,
+        seeds: &experiment.seeds,
+        methods: &experiment.methods,
     };
-    let mut seen = BTreeSet::new();
-    rows.retain(|r| {
-        ours(&r.cell, &r.seed, &r.method) && seen.insert((r.cell.clone(), r.seed, r.method.clone()))
-    });
-    let mut seen = BTreeSet::new();
-    timings.retain(|t| {
-        ours(&t.cell, &t.seed, &t.method) && seen.insert((t.cell.clone(), t.seed, t.method.clone()))
-    });
+    wanted.keep(&mut rows);
+    wanted.keep(&mut timings);
     let have: BTreeSet<(String, u64, String)> = rows
         .iter()
         .map(|r| (r.cell.clone(), r.seed, r.method.clone()))

@@ -268,10 +268,10 @@ impl Experiment {
                 return Err(bad(format!("[[sweep]] '{}' is swept twice", axis.field)));
             }
             let labels: Vec<String> = axis.values.iter().map(|v| v.to_string()).collect();
-            if let Some(j) = (0..labels.len()).find(|&j| labels[..j].contains(&labels[j])) {
+            if let Some(label) = first_repeat(&labels) {
                 return Err(bad(format!(
-                    "[[sweep]] '{}' lists the value {} more than once",
-                    axis.field, labels[j]
+                    "[[sweep]] '{}' lists the value {label} more than once",
+                    axis.field
                 )));
             }
         }
@@ -532,12 +532,12 @@ pub const MAX_VIEWPOINTS: usize = 10_000;
 pub const MAX_BEAMS_PER_RUN: f64 = 16_000_000.0;
 
 /// The first value that appears twice.
-fn first_repeat<T: PartialEq + Copy>(values: &[T]) -> Option<T> {
+fn first_repeat<T: PartialEq>(values: &[T]) -> Option<&T> {
     values
         .iter()
         .enumerate()
         .find(|(i, v)| values[..*i].contains(v))
-        .map(|(_, v)| *v)
+        .map(|(_, v)| v)
 }
 
 #[cfg(test)]

@@ -2,9 +2,11 @@
 //! records are either whole or ignored, and the fingerprint of every input a
 //! run read, so that results of other inputs are never reused.
 
+use super::model::Method;
 use super::runner::{RunRow, TimingRow};
 use super::Experiment;
 use crate::error::{Error, Result};
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 /// FNV-1a, 64 bits: a stable hash (the same on every machine and version).
@@ -71,6 +73,64 @@ pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
         fingerprint: format!("{hash:016x}"),
         files,
     })
+}
+
+/// What an experiment asks for: its sweep cells (labels), seeds and methods.
+/// Rows read back from a results folder are checked against it.
+pub struct Wanted<'a> {
+    /// The sweep cells' labels.
+    pub cells: &'a [String],
+    /// The seeds.
+    pub seeds: &'a [u64],
+    /// The methods.
+    pub methods: &'a [Method],
+}
+
+/// A row of a results file: the run and method it belongs to.
+pub trait RunKey {
+    /// Its (cell label, seed, method).
+    fn key(&self) -> (&str, u64, &str);
+}
+
+impl RunKey for RunRow {
+    fn key(&self) -> (&str, u64, &str) {
+        (&self.cell, self.seed, &self.method)
+    }
+}
+
+impl RunKey for TimingRow {
+    fn key(&self) -> (&str, u64, &str) {
+        (&self.cell, self.seed, &self.method)
+    }
+}
+
+impl Wanted<'_> {
+    /// Keeps the rows of runs and methods the experiment has, each
+    /// (cell, seed, method) once (the first).
+    pub fn keep<T: RunKey>(&self, rows: &mut Vec<T>) {
+        let mut seen = BTreeSet::new();
+        rows.retain(|r| {
+            let (cell, seed, method) = r.key();
+            self.cells.iter().any(|c| c == cell)
+                && self.seeds.contains(&seed)
+                && self.methods.iter().any(|m| m.as_str() == method)
+                && seen.insert((cell.to_string(), seed, method.to_string()))
+        });
+    }
+
+    /// The runs (cell label, seed) of `rows` (as [`Wanted::keep`] leaves
+    /// them) that have a row for every method.
+    pub fn complete(&self, rows: &[RunRow]) -> BTreeSet<(String, u64)> {
+        let mut per_run = BTreeMap::<(&str, u64), usize>::new();
+        for r in rows {
+            *per_run.entry((&r.cell, r.seed)).or_default() += 1;
+        }
+        per_run
+            .into_iter()
+            .filter(|(_, n)| *n == self.methods.len())
+            .map(|((cell, seed), _)| (cell.to_string(), seed))
+            .collect()
+    }
 }
 
 /// The journal record of one finished run: its rows as CSV lines, a
@@ -219,5 +279,42 @@ mod tests {
             .unwrap()
             .0
             .is_empty());
+    }
+
+    #[test]
+    fn only_the_experiments_runs_count_and_only_when_every_method_ran() {
+        let cells = ["c".to_string()];
+        let methods = [Method::Unscented, Method::RayUpdate];
+        let wanted = Wanted {
+            cells: &cells,
+            seeds: &[1, 2],
+            methods: &methods,
+        };
+        let mut rows = vec![
+            row(1, "unscented", 0.1),
+            row(1, "ray_update", 0.2),
+            row(1, "ray_update", 0.9), // a repeat: the first stays
+            row(2, "unscented", 0.3),  // seed 2 lacks the ray update
+            row(3, "unscented", 0.4),  // not a seed of the experiment
+            row(1, "blind", 0.5),      // not a method of the experiment
+        ];
+        let mut other_cell = row(1, "unscented", 0.6);
+        other_cell.cell = "d".into();
+        rows.push(other_cell);
+        wanted.keep(&mut rows);
+        let kept: Vec<(u64, &str, f64)> = rows
+            .iter()
+            .map(|r| (r.seed, r.method.as_str(), r.f1))
+            .collect();
+        assert_eq!(
+            kept,
+            [
+                (1, "unscented", 0.1),
+                (1, "ray_update", 0.2),
+                (2, "unscented", 0.3)
+            ]
+        );
+        let done: Vec<_> = wanted.complete(&rows).into_iter().collect();
+        assert_eq!(done, [("c".to_string(), 1)]);
     }
 }

@@ -120,11 +120,12 @@ pub fn scan_chain(scan: &Scan) -> UncertainChain {
 }
 
 /// The propagated beam ends of one scan (hits with covariances, no-return
-/// beams as directions; too-close and dropped beams carry nothing), and the
-/// propagated origin.
+/// beams as directions; too-close and dropped beams carry nothing), from
+/// the scan's [`measured_points`].
 pub fn beam_ends(
     experiment: &Experiment,
     scan: &Scan,
+    points: &[Option<UncertainPoint>],
     propagator: &dyn Propagator,
 ) -> Vec<BeamEnd> {
     let rotation = scan
@@ -133,7 +134,6 @@ pub fn beam_ends(
         .rotation
         .to_rotation_matrix()
         .into_inner();
-    let points = measured_points(experiment, scan);
     scan.measurements
         .par_iter()
         .zip(experiment.scanner.directions.par_iter())
@@ -156,7 +156,8 @@ pub fn beam_ends(
 
 /// The measured point of each beam in the camera frame with its covariance
 /// (`None` without a hit): the raw range, or with `beam_pooling` the range
-/// pooled on the viewpoint's local plane (docs/math.md §5.5).
+/// pooled on the viewpoint's local plane (docs/math.md §5.5). The same for
+/// every method: compute it once per scan.
 pub fn measured_points(experiment: &Experiment, scan: &Scan) -> Vec<Option<UncertainPoint>> {
     let range = &experiment.profile.range;
     let directions = &experiment.scanner.directions;
@@ -187,14 +188,15 @@ pub fn measured_points(experiment: &Experiment, scan: &Scan) -> Vec<Option<Uncer
         .collect()
 }
 
-/// For each hit of a scan: the error `truth − propagated mean` and the
-/// propagated covariance, for consistency checks against the simulator.
+/// For each hit of a scan (its [`measured_points`]): the error `truth −
+/// propagated mean` and the propagated covariance, for consistency checks
+/// against the simulator.
 pub fn beam_ends_with_truth(
-    experiment: &Experiment,
     scan: &Scan,
+    points: &[Option<UncertainPoint>],
     propagator: &dyn Propagator,
 ) -> Vec<(Vector3, crate::geometry::Matrix3)> {
-    measured_points(experiment, scan)
+    points
         .iter()
         .zip(&scan.truth.beams)
         .filter_map(|(point, t)| {
@@ -215,6 +217,27 @@ pub fn build_map(
     resolution: f64,
     offset: &Vector3,
 ) -> Result<Octree> {
+    let measured: Vec<_> = if method == Method::RayUpdate {
+        Vec::new() // the ray update takes the raw hits
+    } else {
+        run.scans
+            .iter()
+            .map(|scan| measured_points(experiment, scan))
+            .collect()
+    };
+    build_map_measured(experiment, run, &measured, method, resolution, offset)
+}
+
+/// [`build_map`] from the scans' [`measured_points`] (one per scan; unused
+/// by the ray update), computed once for all methods of a run.
+pub fn build_map_measured(
+    experiment: &Experiment,
+    run: &SimulatedRun,
+    measured: &[Vec<Option<UncertainPoint>>],
+    method: Method,
+    resolution: f64,
+    offset: &Vector3,
+) -> Result<Octree> {
     let mut tree = Octree::new(resolution);
     let raster = Raster {
         horizontal: &experiment.scanner.horizontal_angles,
@@ -226,7 +249,7 @@ pub fn build_map(
         ..MergeOptions::default()
     };
     let mut updater = RayUpdater::default();
-    for scan in &run.scans {
+    for (i, scan) in run.scans.iter().enumerate() {
         let full_chain = scan_chain(scan);
         let chain = if method == Method::Correlated {
             split_chain(&full_chain, false)
@@ -241,7 +264,7 @@ pub fn build_map(
             continue;
         };
         let origin = propagator.origin();
-        let mut beams = beam_ends(experiment, scan, propagator.as_ref());
+        let mut beams = beam_ends(experiment, scan, &measured[i], propagator.as_ref());
         for beam in &mut beams {
             if let BeamEnd::Hit { point, .. } = beam {
                 *point += offset;

@@ -1,7 +1,9 @@
 //! `sigmap run`: every seed of an experiment, every method on each seed's
 //! scans (common random numbers), scored against the ground truth.
 
-use super::model::{beam_ends_with_truth, build_map, propagator, scan_chain, Method};
+use super::model::{
+    beam_ends_with_truth, build_map_measured, measured_points, propagator, scan_chain, Method,
+};
 use super::{simulate, Experiment};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::voxelise_at;
@@ -111,19 +113,32 @@ pub fn run_seed(
     let simulate_s = start.elapsed().as_secs_f64();
     let offset = experiment.map_offset(seed);
     let observable = observable_cells(experiment, &run, experiment.resolution, &offset);
+    // What each scan measured (pooled or not): the same for every method.
+    let measured: Vec<_> = run
+        .scans
+        .iter()
+        .map(|scan| measured_points(experiment, scan))
+        .collect();
     let (mut rows, mut timings, mut maps) = (Vec::new(), Vec::new(), Vec::new());
     for &method in &experiment.methods {
         let start = Instant::now();
-        let map = build_map(experiment, &run, method, experiment.resolution, &offset)?;
+        let map = build_map_measured(
+            experiment,
+            &run,
+            &measured,
+            method,
+            experiment.resolution,
+            &offset,
+        )?;
         let model_s = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let s: MapScores = score_map(&map, truth, &observable);
         // Propagated points against the true surface points. Points of one
         // viewpoint share its pose error: the χ² bounds do not apply here.
         let mut pairs = Vec::new();
-        for scan in &run.scans {
+        for (scan, points) in run.scans.iter().zip(&measured) {
             if let Some(p) = propagator(method, &scan_chain(scan)) {
-                pairs.extend(beam_ends_with_truth(experiment, scan, p.as_ref()));
+                pairs.extend(beam_ends_with_truth(scan, points, p.as_ref()));
             }
         }
         let consistency =

@@ -24,7 +24,7 @@ pub fn pool_ranges(
 ) -> Vec<Pooled> {
     let rows = ranges.len() / columns.max(1);
     let mut out = Vec::with_capacity(ranges.len());
-    let mut points: Vec<(Vector3, f64)> = Vec::with_capacity(9);
+    let mut points: Vec<Neighbour> = Vec::with_capacity(9);
     for k in 0..ranges.len() {
         let Some(r) = ranges[k] else {
             out.push(None);
@@ -41,7 +41,11 @@ pub fn pool_ranges(
                 }
                 let j = rr as usize * columns + cc as usize;
                 if let Some(rj) = ranges[j] {
-                    points.push((directions[j] * rj, sigma(rj)));
+                    points.push(Neighbour {
+                        point: directions[j] * rj,
+                        sigma: sigma(rj),
+                        direction: directions[j],
+                    });
                 }
             }
         }
@@ -60,53 +64,52 @@ const CHI2_99: [f64; 6] = [6.635, 9.210, 11.345, 13.277, 15.086, 16.812];
 /// 5 points) is pooled; anything else (an edge, a second surface, a corner)
 /// keeps the raw range. Dropping points until the test passes would bias
 /// the variance; refusing does not.
-fn pool_one(points: &[(Vector3, f64)], direction: &Vector3, r: f64, sigma: f64) -> (f64, f64) {
+fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> (f64, f64) {
     let raw = (r, sigma);
-    let own = direction * r;
-    let kept = points;
-    {
-        if kept.len() < 5 {
-            return raw;
-        }
-        let Some(plane) = fit_plane(kept.iter().map(|p| p.0)) else {
-            return raw;
-        };
-        let normalised: Vec<f64> = kept
-            .iter()
-            .map(|(p, s)| {
-                plane.distance(p) / (s * plane.normal.dot(&p.normalize()).abs().max(1e-3))
-            })
-            .collect();
-        let chi2: f64 = normalised.iter().map(|x| x * x).sum();
-        if chi2 <= CHI2_99[kept.len() - 4] {
-            let along = plane.normal.dot(direction);
-            let own_off = plane.distance(&own) / (sigma * along.abs().max(1e-3));
-            if own_off.abs() > 3.0 || along.abs() < 0.1 {
-                return raw;
-            }
-            let pooled = plane.normal.dot(&plane.centroid) / along;
-            if !(pooled.is_finite() && pooled > 0.0) {
-                return raw;
-            }
-            // Regression prediction variance of the plane at the beam's
-            // crossing, along the normal, then along the beam.
-            let n = kept.len() as f64;
-            let normal_variance = kept
-                .iter()
-                .map(|(p, s)| (s * plane.normal.dot(&p.normalize())).powi(2))
-                .sum::<f64>()
-                / n;
-            let offset = direction * pooled - plane.centroid;
-            let spread = plane
-                .in_plane
-                .iter()
-                .map(|(axis, scatter)| offset.dot(axis).powi(2) / scatter)
-                .sum::<f64>();
-            let variance = normal_variance * (1.0 / n + spread) / (along * along);
-            return (pooled, variance.sqrt());
-        }
-        raw
+    if points.len() < 5 {
+        return raw;
     }
+    let Some(plane) = fit_plane(points.iter().map(|p| p.point)) else {
+        return raw;
+    };
+    // Each point's range noise, seen along the plane's normal.
+    let normal_sigma = |p: &Neighbour| p.sigma * plane.normal.dot(&p.direction).abs();
+    let chi2: f64 = points
+        .iter()
+        .map(|p| (plane.distance(&p.point) / normal_sigma(p).max(1e-3 * p.sigma)).powi(2))
+        .sum();
+    if chi2 > CHI2_99[points.len() - 4] {
+        return raw;
+    }
+    let along = plane.normal.dot(direction);
+    let own_off = plane.distance(&(direction * r)) / (sigma * along.abs().max(1e-3));
+    if own_off.abs() > 3.0 || along.abs() < 0.1 {
+        return raw;
+    }
+    let pooled = plane.normal.dot(&plane.centroid) / along;
+    if !(pooled.is_finite() && pooled > 0.0) {
+        return raw;
+    }
+    // Regression prediction variance of the plane at the beam's crossing,
+    // along the normal, then along the beam.
+    let n = points.len() as f64;
+    let normal_variance = points.iter().map(|p| normal_sigma(p).powi(2)).sum::<f64>() / n;
+    let offset = direction * pooled - plane.centroid;
+    let spread = plane
+        .in_plane
+        .iter()
+        .map(|(axis, scatter)| offset.dot(axis).powi(2) / scatter)
+        .sum::<f64>();
+    let variance = normal_variance * (1.0 / n + spread) / (along * along);
+    (pooled, variance.sqrt())
+}
+
+/// A hit of the neighbourhood: its camera-frame point, range noise and
+/// beam direction.
+struct Neighbour {
+    point: Vector3,
+    sigma: f64,
+    direction: Vector3,
 }
 
 struct Plane {

@@ -25,9 +25,9 @@ const BLOCK: i64 = 8;
 /// At most this many kernel samples per axis side (the kernel is strided
 /// beyond it, so a wide σ costs no more than a narrow one).
 const MAX_HALF: i64 = 6;
-/// A slab of the source box is held densely; its x-y face may not exceed
-/// this many cells.
-const MAX_FACE_CELLS: i64 = 1 << 24;
+/// A slab of the source box (a block's layers and the halo) is held densely
+/// in one buffer of at most this many cells (256 MB).
+const MAX_SLAB_CELLS: i64 = 1 << 26;
 
 /// What [`expect_over_shared_motion`] did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -149,10 +149,11 @@ pub fn expect_over_shared_motion(
     let source_lo = target_lo.map(|v| (v - reach).max(0));
     let source_hi = target_hi.map(|v| (v + reach).min(65535));
     let n = [0, 1, 2].map(|a| source_hi[a] - source_lo[a] + 1);
-    if n[0] * n[1] > MAX_FACE_CELLS {
+    let slab_depth = BLOCK + 2 * reach;
+    if n[0] * n[1] * slab_depth > MAX_SLAB_CELLS {
         return Err(format!(
-            "the shared-motion step would hold {} x {} cells per layer (limit {MAX_FACE_CELLS}); \
-             use a coarser resolution",
+            "the shared-motion step would hold {} x {} x {slab_depth} cells at once (limit \
+             {MAX_SLAB_CELLS}); use a coarser resolution",
             n[0], n[1]
         ));
     }
@@ -182,8 +183,19 @@ pub fn expect_over_shared_motion(
         ..Default::default()
     };
     let mut updates: Vec<(Key, f32)> = Vec::new();
-    // One slab of blocks at a time, held densely with its halo.
+    // The leaves that reach the source box (the rest are never read).
+    let sources: Vec<_> = leaves
+        .iter()
+        .filter(|l| {
+            (0..3).all(|a| {
+                let k = l.key.0[a] as i64;
+                k <= source_hi[a] && k + span(l.depth) > source_lo[a]
+            })
+        })
+        .collect();
+    // One slab of blocks at a time, held densely with its halo, in one buffer.
     let layer = (n[0] * n[1]) as usize;
+    let mut buffer = vec![f32::NAN; layer * slab_depth as usize];
     for bz in 0..blocks[2] {
         let z0 = target_lo[2] + bz * BLOCK;
         let z1 = (z0 + BLOCK - 1).min(target_hi[2]);
@@ -191,9 +203,9 @@ pub fn expect_over_shared_motion(
             (z0 - reach).max(source_lo[2]),
             (z1 + reach).min(source_hi[2]),
         );
-        let depth_cells = (s1 - s0 + 1) as usize;
-        let mut dense = vec![f32::NAN; layer * depth_cells];
-        for leaf in &leaves {
+        let dense = &mut buffer[..layer * (s1 - s0 + 1) as usize];
+        dense.fill(f32::NAN);
+        for leaf in &sources {
             let k0 = leaf.key.0.map(|v| v as i64);
             let k1 = k0.map(|v| v + span(leaf.depth) - 1);
             let (x0, x1) = (k0[0].max(source_lo[0]), k1[0].min(source_hi[0]));
