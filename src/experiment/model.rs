@@ -395,6 +395,26 @@ mod tests {
     }
 
     #[test]
+    fn the_shared_error_is_taken_once_on_the_fused_map() {
+        // The same scans, believed with and without shared covariance: the
+        // viewpoints fuse identically (arm error only), so the maps differ
+        // only by the shared-motion step, which must have run.
+        let experiment = quickstart();
+        let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+        let mut believed_exact = run.clone();
+        for scan in &mut believed_exact.scans {
+            scan.chain.world_from_scene.covariance = Matrix6::zeros();
+            scan.chain.robot_from_camera.covariance = Matrix6::zeros();
+        }
+        let offset = Vector3::zeros();
+        let map = |run: &SimulatedRun| {
+            build_map(&experiment, run, Method::Correlated, 0.02, &offset).unwrap()
+        };
+        let (with_shared, without) = (map(&run), map(&believed_exact));
+        assert_ne!(with_shared, without, "the shared-motion step ran");
+    }
+
+    #[test]
     fn pooling_narrows_most_hits_and_only_when_asked() {
         let mut experiment = quickstart();
         let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
