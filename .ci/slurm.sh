@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A single-node SLURM cluster on this machine (as root, no systemd), for the
 # cluster integration test: `bash .ci/slurm.sh start` / `bash .ci/slurm.sh stop`.
-# What each step needs is in the project's shared/SLURM.md.
+# What each step needs is in docs/slurm.md.
 set -euo pipefail
 
 start() {

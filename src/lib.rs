@@ -4,12 +4,17 @@
 //! triangle meshes; sigmap injects calibrated Gaussian errors, propagates the
 //! uncertainty through `X_s = T_sw⁻¹ T_rw T_cr X_c` into the scene frame, builds
 //! a probabilistic octree and scores it against the ground truth (Payeur,
-//! IMTC 2002; the math is in the project's MATH.md).
+//! IMTC 2002; the math is in docs/math.md).
 //!
-//! Modules by concept: [`geometry`] (poses), [`uncertainty`] (uncertain
-//! transforms and covariances), [`sim`] (scene, robot, scanner, truth draw),
-//! [`experiment`] (configuration, runs, files), [`files`] (staged output that
-//! never deletes what sigmap did not write), [`cli`] (the `sigmap` command).
+//! Modules by concept (docs/architecture.md: what each owns and may import):
+//! [`geometry`] (poses, rpy rotations), [`uncertainty`] (uncertain transforms,
+//! the propagators, consistency statistics), [`sim`] (scene, robot, scanner,
+//! error profiles, truth draw), [`mapping`] (local grids, the cell model, the
+//! octree, OctoMap's update and files; it never sees the truth), [`eval`]
+//! (ground truth, observable mask, scores), [`experiment`] (configuration,
+//! runs, journals, summaries, charts), [`plot`] (SVG charts), [`files`]
+//! (staged output that never deletes what sigmap did not write), [`error`]
+//! (one-line errors and exit codes), [`cli`] (the `sigmap` command).
 
 pub mod cli;
 pub mod error;

@@ -4,7 +4,7 @@
 //! own T_sw, T_cr, T_rw and beam errors); from each, one measured point (the
 //! hit nearest the centre of the raster) is propagated into the scene frame
 //! and compared with the true surface point. One point per run keeps the
-//! errors independent (MATH.md §6.6), so N·ANEES ~ χ²(3N): the Jacobian and
+//! errors independent (docs/math.md §6.6), so N·ANEES ~ χ²(3N): the Jacobian and
 //! unscented ANEES must fall in the two-sided 95% band for N = 200
 //! ([2.670, 3.349]); blind, which ignores the pose errors, must fall far
 //! above it (over-confident).

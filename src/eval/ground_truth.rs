@@ -1,4 +1,4 @@
-//! Ground-truth occupancy of a scene (MATH.md §7.1).
+//! Ground-truth occupancy of a scene (docs/math.md §7.1).
 //!
 //! Rule: a cell of the finest level is **occupied** when its box meets a
 //! solid in more than a face (the box shrunk by [`TOUCH`] on every side

@@ -1,4 +1,4 @@
-//! Scores of one map against the ground truth (MATH.md §7.2–7.3), over the
+//! Scores of one map against the ground truth (docs/math.md §7.2–7.3), over the
 //! cells some true beam could have seen.
 
 use crate::mapping::octree::{Key, DEPTH};
@@ -7,7 +7,7 @@ use crate::mapping::Octree;
 use rustc_hash::FxHashSet;
 use serde::Serialize;
 
-/// |log-odds| below this counts as unknown in the statistics (MATH.md §4.6).
+/// |log-odds| below this counts as unknown in the statistics (docs/math.md §4.6).
 pub const UNKNOWN_BAND: f32 = 0.1;
 
 /// Map-vs-truth scores over the observable cells.

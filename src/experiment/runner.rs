@@ -10,7 +10,7 @@ use crate::eval::ground_truth::voxelise_at;
 use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
 use crate::mapping::Octree;
-use crate::uncertainty::consistency::{nees, ConsistencyReport};
+use crate::uncertainty::consistency::{nees, student_t_quantile, ConsistencyReport};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -112,7 +112,13 @@ pub fn run_seed(
     let run = simulate(experiment, seed, |_| {})?;
     let simulate_s = start.elapsed().as_secs_f64();
     let offset = experiment.map_offset(seed);
-    let observable = observable_cells(experiment, &run, experiment.resolution, &offset);
+    let observable = observable_cells(
+        &experiment.scanner.directions,
+        experiment.scanner.max_range,
+        run.scans.iter().map(|scan| &scan.truth),
+        experiment.resolution,
+        &offset,
+    );
     // What each scan measured (pooled or not): the same for every method.
     let measured: Vec<_> = run
         .scans
@@ -251,23 +257,6 @@ pub struct SummaryRow {
     pub ci95_high: f64,
 }
 
-/// The `p` quantile of Student's t with `dof` degrees of freedom (bisection on
-/// statrs' CDF).
-fn t_quantile(dof: f64, p: f64) -> f64 {
-    use statrs::distribution::{ContinuousCDF, StudentsT};
-    let t = StudentsT::new(0.0, 1.0, dof).expect("positive degrees of freedom");
-    let (mut lo, mut hi) = (0.0, 1e3);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if t.cdf(mid) < p {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
-}
-
 /// Per cell (in `cells` order), method and metric: mean and 95% interval
 /// over the rows' seeds.
 pub fn summarise(rows: &[RunRow], cells: &[String], methods: &[Method]) -> Vec<SummaryRow> {
@@ -290,7 +279,7 @@ pub fn summarise(rows: &[RunRow], cells: &[String], methods: &[Method]) -> Vec<S
             let mean = values.iter().sum::<f64>() / n as f64;
             let half = if n >= 2 {
                 let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-                t_quantile((n - 1) as f64, 0.975) * (var / n as f64).sqrt()
+                student_t_quantile((n - 1) as f64, 0.975) * (var / n as f64).sqrt()
             } else {
                 f64::NAN
             };
@@ -345,8 +334,8 @@ mod tests {
 
     #[test]
     fn t_quantiles() {
-        assert!((t_quantile(1.0, 0.975) - 12.706).abs() < 1e-3);
-        assert!((t_quantile(9.0, 0.975) - 2.262).abs() < 1e-3);
-        assert!((t_quantile(1000.0, 0.975) - 1.962).abs() < 1e-3);
+        assert!((student_t_quantile(1.0, 0.975) - 12.706).abs() < 1e-3);
+        assert!((student_t_quantile(9.0, 0.975) - 2.262).abs() < 1e-3);
+        assert!((student_t_quantile(1000.0, 0.975) - 1.962).abs() < 1e-3);
     }
 }

@@ -1,4 +1,4 @@
-//! Poses and rigid transforms in the paper's parametrisation (MATH.md §1–2).
+//! Poses and rigid transforms in the paper's parametrisation (docs/math.md §1–2).
 //!
 //! A pose is six numbers `(x, y, z, roll, pitch, yaw)` with
 //! `R = Rz(yaw) Ry(pitch) Rx(roll)` (the URDF fixed-axis convention). Angles are

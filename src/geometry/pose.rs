@@ -1,10 +1,10 @@
-//! The six-parameter pose (MATH.md §1.1) and the rotation derivatives (§2.1).
+//! The six-parameter pose (docs/math.md §1.1) and the rotation derivatives (§2.1).
 
 use super::{Isometry3, Matrix3, Vector3, Vector6};
 use nalgebra::{Rotation3, Translation3, UnitQuaternion};
 
 /// A rigid pose as translation and fixed-axis roll/pitch/yaw (radians):
-/// `p_parent = xyz + Rz(yaw) Ry(pitch) Rx(roll) p_child` (MATH.md §1.1, URDF `<origin>`).
+/// `p_parent = xyz + Rz(yaw) Ry(pitch) Rx(roll) p_child` (docs/math.md §1.1, URDF `<origin>`).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Pose {
     /// Translation in metres.
@@ -56,7 +56,7 @@ impl Pose {
         )
     }
 
-    /// Recovers the parameters of an isometry (MATH.md §1.1, angle recovery;
+    /// Recovers the parameters of an isometry (docs/math.md §1.1, angle recovery;
     /// singular at pitch = ±π/2, where roll and yaw are not unique but `R` is).
     pub fn from_isometry(iso: &Isometry3) -> Self {
         let r = iso.rotation.to_rotation_matrix().into_inner();
@@ -78,7 +78,7 @@ impl Pose {
     }
 }
 
-/// `R(φ, θ, ψ) = Rz(ψ) Ry(θ) Rx(φ)` for `rpy = (φ, θ, ψ)` (MATH.md §1.1).
+/// `R(φ, θ, ψ) = Rz(ψ) Ry(θ) Rx(φ)` for `rpy = (φ, θ, ψ)` (docs/math.md §1.1).
 pub fn rotation_rpy(rpy: &Vector3) -> Matrix3 {
     let (sr, cr) = rpy.x.sin_cos();
     let (sp, cp) = rpy.y.sin_cos();
@@ -97,7 +97,7 @@ pub fn rotation_rpy(rpy: &Vector3) -> Matrix3 {
 }
 
 /// `E(φ, θ, ψ) = [ω_φ ω_θ ω_ψ]`, the fixed-frame axes of the three angle rates:
-/// `∂(R q)/∂(φ, θ, ψ) = -[R q]× E` (MATH.md §2.1). `det E = cos θ`.
+/// `∂(R q)/∂(φ, θ, ψ) = -[R q]× E` (docs/math.md §2.1). `det E = cos θ`.
 pub fn rpy_rate_matrix(rpy: &Vector3) -> Matrix3 {
     let (sp, cp) = rpy.y.sin_cos();
     let (sy, cy) = rpy.z.sin_cos();
@@ -162,7 +162,7 @@ mod tests {
 
     #[test]
     fn rotation_derivative_identity_matches_finite_differences() {
-        // ∂(R q)/∂α = -[R q]× E (MATH.md §2.1), against central differences.
+        // ∂(R q)/∂α = -[R q]× E (docs/math.md §2.1), against central differences.
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         for _ in 0..100 {
             let pose = random_pose(&mut rng);

@@ -1,4 +1,4 @@
-//! OctoMap's file formats (the project's OCTOMAP.md): `.ot` (full log-odds)
+//! OctoMap's file formats (docs/octomap.md): `.ot` (full log-odds)
 //! and `.bt` (maximum likelihood, 2 bits per child), written and read.
 
 use super::octree::{Clamp, Octree};

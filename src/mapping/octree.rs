@@ -1,5 +1,5 @@
 //! A sparse probabilistic octree in log-odds, laid out like OctoMap's
-//! (MATH.md §5.2; the project's OCTOMAP.md): fixed depth 16, per axis
+//! (docs/math.md §5.2; docs/octomap.md): fixed depth 16, per axis
 //! `key = floor(coord / res) + 32768`, the child at depth `d` chosen by bit
 //! `15 − d` of the keys (bit 0 from x, 1 from y, 2 from z). An absent node is
 //! unknown; an inner node holds the maximum of its children; eight equal leaf
@@ -75,7 +75,7 @@ fn compact(m: u64) -> u16 {
     ((x | x >> 16) & 0xffff) as u16
 }
 
-/// How log-odds are bounded after an update (MATH.md §4.6).
+/// How log-odds are bounded after an update (docs/math.md §4.6).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Clamp {
     /// Lower bound (OctoMap: −2.0, p = 0.1192).
@@ -120,7 +120,7 @@ pub fn check_cells(extent: [f64; 3], resolution: f64) -> Result<(), String> {
     ))
 }
 
-/// OctoMap's hit update, `logodds(0.7)` = 0.8473 (MATH.md §4.2), bit-exact.
+/// OctoMap's hit update, `logodds(0.7)` = 0.8473 (docs/math.md §4.2), bit-exact.
 pub const LOG_ODDS_HIT: f32 = f32::from_bits(0x3f58_e883);
 /// OctoMap's miss update, `logodds(0.4)` = −0.4055, bit-exact.
 pub const LOG_ODDS_MISS: f32 = f32::from_bits(0xbecf_991f);

@@ -1,4 +1,4 @@
-//! The occupancy profile along one beam (MATH.md §4.3–4.4): the designed
+//! The occupancy profile along one beam (docs/math.md §4.3–4.4): the designed
 //! closed-form D-OPDF with the Gaussian-like step of the uncertain origin.
 //!
 //! Along the beam line `d = u + λ v` (λ from the mean origin, in metres):
@@ -9,7 +9,7 @@
 
 use statrs::function::erf::erfc;
 
-/// How the origin's uncertainty enters (MATH.md §4.4).
+/// How the origin's uncertainty enters (docs/math.md §4.4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OriginStep {
     /// `w(λ) = Φ(λ/σ_o)` (the default).
@@ -34,7 +34,7 @@ pub struct OpdfParams {
 }
 
 impl OpdfParams {
-    /// MATH.md's defaults for surface thickness `thickness`.
+    /// docs/math.md §4.3's defaults for surface thickness `thickness`.
     pub fn new(thickness: f64) -> Self {
         Self {
             thickness,

@@ -2,7 +2,7 @@
 //! DDA (Amanatides & Woo) from the sensor origin to each end point marks the
 //! traversed cells free and the end cell occupied; each cell gets at most one
 //! update per scan and occupied wins; hit +0.85, miss −0.41, clamped to
-//! [−2, 3.5] (OCTOMAP.md, "Update rule"; OctoMap's `insertPointCloud`).
+//! [−2, 3.5] (docs/octomap.md, "The update rule"; OctoMap's `insertPointCloud`).
 
 use super::octree::{Clamp, Key, Octree, LOG_ODDS_HIT, LOG_ODDS_MISS};
 use crate::geometry::{Point3, Vector3};

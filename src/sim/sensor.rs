@@ -186,7 +186,7 @@ impl RangeModel {
         self.sigma0 + self.k * r
     }
 
-    /// Covariance of the measured point `r d` in the laser frame (MATH.md §4.5):
+    /// Covariance of the measured point `r d` in the laser frame (docs/math.md §4.5):
     /// `σ_r² d dᵀ + r² σ_a² (I − d dᵀ)` for a unit direction `d`.
     pub fn point_covariance(&self, direction: &Vector3, r: f64) -> Matrix3 {
         self.point_covariance_with(direction, r, self.sigma(r))

@@ -7,15 +7,10 @@
 use super::profile::ArmError;
 use super::robot::KinematicChain;
 use crate::geometry::{rpy_rate_matrix, Isometry3, Matrix6, Pose, Vector6};
-use crate::uncertainty::{sqrt_factor, UncertainPose};
-use nalgebra::{DMatrix, SVector};
+use crate::uncertainty::{sqrt_factor, standard_normal, UncertainPose};
+use nalgebra::DMatrix;
 use rand::Rng;
 use rand_distr::StandardNormal;
-
-/// `N` independent standard normal draws.
-pub fn standard_normal<const N: usize>(rng: &mut impl Rng) -> SVector<f64, N> {
-    SVector::from_fn(|_, _| rng.sample(StandardNormal))
-}
 
 /// `nominal + L ξ` with `L Lᵀ = covariance`; always consumes six normals.
 pub fn draw_pose(nominal: &UncertainPose, rng: &mut impl Rng) -> Pose {
@@ -35,7 +30,7 @@ pub struct ArmState {
 /// Derivative of the pose parameters `(x, y, z, roll, pitch, yaw)` of
 /// `world_from_base · FK(q)` with respect to `q` (6 x dof): the geometric
 /// Jacobian rotated into the world, angular rows mapped to rpy rates by `E⁻¹`
-/// (MATH.md §2.1). Fails at pitch ±90°, where rpy is singular.
+/// (docs/math.md §2.1). Fails at pitch ±90°, where rpy is singular.
 pub fn pose_parameter_jacobian(
     chain: &KinematicChain,
     world_from_base: &Isometry3,

@@ -1,4 +1,4 @@
-//! The uncertain transform chain `X_out = T_1 · T_2 ··· T_k · X` (MATH.md §1.2),
+//! The uncertain transform chain `X_out = T_1 · T_2 ··· T_k · X` (docs/math.md §1.2),
 //! any link of which may be inverted, applied to an uncertain point.
 
 use super::{CovarianceSpec, UncertainPose};

@@ -1,10 +1,10 @@
-//! Covariance consistency statistics (MATH.md §6): NEES, ANEES with its χ²
+//! Covariance consistency statistics (docs/math.md §6): NEES, ANEES with its χ²
 //! bounds, Mahalanobis coverage, and distances between covariances.
 
 use crate::geometry::{Matrix3, Vector3};
-use statrs::distribution::{ChiSquared, ContinuousCDF};
+use statrs::distribution::{ChiSquared, ContinuousCDF, StudentsT};
 
-/// Normalised estimation error squared `eᵀ Γ⁻¹ e` (MATH.md §6.2). A singular
+/// Normalised estimation error squared `eᵀ Γ⁻¹ e` (docs/math.md §6.2). A singular
 /// `Γ` gets a relative jitter of 1e-12 of its trace; `∞` if still singular.
 pub fn nees(error: &Vector3, covariance: &Matrix3) -> f64 {
     let chol = covariance.cholesky().or_else(|| {
@@ -33,13 +33,30 @@ pub fn anees_bounds(n: usize, dof: usize, level: f64) -> (f64, f64) {
 /// (statrs' own `inverse_cdf` stops at about 1e-3).
 pub fn chi_square_quantile(k: f64, p: f64) -> f64 {
     let chi = ChiSquared::new(k).expect("positive degrees of freedom");
-    let (mut lo, mut hi) = (0.0, k.max(1.0));
-    while chi.cdf(hi) < p {
+    invert_cdf(|x| chi.cdf(x), p, k.max(1.0), 1e-12)
+}
+
+/// The `p ≥ ½` quantile of Student's t with `dof` degrees of freedom (the
+/// summaries' 95% intervals), by the same bisection, to full precision.
+pub fn student_t_quantile(dof: f64, p: f64) -> f64 {
+    let t = StudentsT::new(0.0, 1.0, dof).expect("positive degrees of freedom");
+    invert_cdf(|x| t.cdf(x), p, 1e3, 0.0)
+}
+
+/// The `x ≥ 0` where the increasing `cdf` reaches `p` (`cdf(0) ≤ p`), to
+/// `relative` precision (0: until the bracket is two adjacent floats); the
+/// upper end doubles from `start` until it brackets `p`.
+fn invert_cdf(cdf: impl Fn(f64) -> f64, p: f64, start: f64, relative: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, start);
+    while cdf(hi) < p {
         hi *= 2.0;
     }
-    while hi - lo > 1e-12 * hi {
+    while hi - lo > relative * hi {
         let mid = 0.5 * (lo + hi);
-        if chi.cdf(mid) < p {
+        if mid <= lo || mid >= hi {
+            break;
+        }
+        if cdf(mid) < p {
             lo = mid;
         } else {
             hi = mid;
@@ -116,7 +133,7 @@ pub fn relative_frobenius(predicted: &Matrix3, reference: &Matrix3) -> f64 {
     (predicted - reference).norm() / reference.norm()
 }
 
-/// `D_KL(N(μ0, Σ0) ‖ N(μ1, Σ1))` for 3-D Gaussians (MATH.md §6.4); report it as
+/// `D_KL(N(μ0, Σ0) ‖ N(μ1, Σ1))` for 3-D Gaussians (docs/math.md §6.4); report it as
 /// `kl_divergence(Monte Carlo, predicted)`. `∞` when `Σ1` is singular.
 pub fn kl_divergence(mean0: &Vector3, cov0: &Matrix3, mean1: &Vector3, cov1: &Matrix3) -> f64 {
     let Some(chol1) = cov1.cholesky() else {
@@ -154,7 +171,7 @@ mod tests {
 
     #[test]
     fn anees_bounds_match_the_tabulated_values() {
-        // MATH.md §6.2 table (n = 3).
+        // docs/math.md §6.2 table (n = 3).
         for (n, lo, hi) in [
             (25, 2.118, 4.034),
             (50, 2.360, 3.716),

@@ -1,6 +1,8 @@
 //! Covariance matrices: parsing from files, validation and square roots.
 
-use nalgebra::{DMatrix, SMatrix, SymmetricEigen};
+use nalgebra::{DMatrix, SMatrix, SVector, SymmetricEigen};
+use rand::Rng;
+use rand_distr::StandardNormal;
 use serde::Deserialize;
 
 /// A covariance as written in sigmap's files: either `sigma = [..]` (standard
@@ -83,6 +85,12 @@ pub fn check_covariance<const N: usize>(m: &SMatrix<f64, N, N>) -> Result<(), St
         ));
     }
     Ok(())
+}
+
+/// `N` independent standard normal draws: the one sampler of the truth draw
+/// and the Monte Carlo reference, so both perturb parameters alike.
+pub fn standard_normal<const N: usize>(rng: &mut impl Rng) -> SVector<f64, N> {
+    SVector::from_fn(|_, _| rng.sample(StandardNormal))
 }
 
 /// A square root `L` with `L Lᵀ = m` for a valid (possibly singular)

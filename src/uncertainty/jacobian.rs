@@ -1,4 +1,4 @@
-//! First-order propagation: the analytic Jacobian of the chain (MATH.md §2.2,
+//! First-order propagation: the analytic Jacobian of the chain (docs/math.md §2.2,
 //! generalised to any number of links, any of them inverted).
 //!
 //! With `A_i = T_1 ··· T_{i−1}` (rotation `P_i`, translation `a_i`) and the
@@ -277,7 +277,7 @@ mod tests {
 
     #[test]
     fn translation_only_chain_is_linear_and_exact() {
-        // MATH.md §2 linear limit: angle variances zero.
+        // docs/math.md §2 linear limit: angle variances zero.
         let pose = |xyz, rpy, s: f64| UncertainPose {
             mean: Pose::new(xyz, rpy),
             covariance: Matrix6::from_diagonal(&Vector6::new(

@@ -1,7 +1,8 @@
-//! Uncertainty over the transform chain (MATH.md §1–3, §6): uncertain poses,
+//! Uncertainty over the transform chain (docs/math.md §1–3, §6): uncertain poses,
 //! the chain `T_1 ··· T_k X`, four propagators behind one trait, and the
 //! statistics that check them.
 
+mod blind;
 pub mod chain;
 pub mod compare;
 pub mod consistency;
@@ -11,17 +12,18 @@ pub mod monte_carlo;
 pub mod quadratic;
 pub mod unscented;
 
+pub use blind::BlindPropagator;
 pub use chain::{read_chain_file, ChainLink, Gaussian3, UncertainChain, UncertainPoint};
-pub use covariance::{check_covariance, sqrt_factor, CovarianceSpec};
+pub use covariance::{check_covariance, sqrt_factor, standard_normal, CovarianceSpec};
 pub use jacobian::JacobianPropagator;
-pub use monte_carlo::{BlindPropagator, MonteCarloPropagator};
+pub use monte_carlo::MonteCarloPropagator;
 pub use unscented::{SigmaSet, UnscentedPropagator};
 
 use crate::geometry::{Matrix3, Matrix6, Pose, Vector3};
 use rayon::prelude::*;
 
 /// A pose known up to a zero-mean Gaussian error on its six parameters
-/// (additive on the angles, MATH.md "global conventions").
+/// (additive on the angles, docs/math.md, notation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct UncertainPose {
     /// The nominal (believed) pose.

@@ -1,5 +1,5 @@
 //! Monte Carlo propagation: the reference every other propagator is checked
-//! against (MATH.md §6.1). Every parameter is drawn with the same additive
+//! against (docs/math.md §6.1). Every parameter is drawn with the same additive
 //! perturbation model the other methods assume.
 
 use super::chain::{Gaussian3, UncertainChain, UncertainPoint};
@@ -29,11 +29,11 @@ pub fn monte_carlo_samples(
                 .iter()
                 .zip(&roots)
                 .map(|(link, root)| {
-                    let xi = crate::sim::truth::standard_normal::<6>(rng);
+                    let xi = super::standard_normal::<6>(rng);
                     Pose::from_params(&(link.pose.mean.params() + root * xi))
                 })
                 .collect();
-            let x = point.mean + point_root * crate::sim::truth::standard_normal::<3>(rng);
+            let x = point.mean + point_root * super::standard_normal::<3>(rng);
             (chain.evaluate(|i| poses[i]) * Point3::from(x)).coords
         })
         .collect()
@@ -89,39 +89,5 @@ impl Propagator for MonteCarloPropagator {
             self.samples,
             &mut rng,
         ))
-    }
-}
-
-/// "Blind" propagation: the chain taken as exact, only the measurement
-/// covariance mapped by the nominal rotation (the previous work the paper
-/// extends).
-#[derive(Clone, Debug)]
-pub struct BlindPropagator {
-    nominal: crate::geometry::Isometry3,
-    rotation: Matrix3,
-}
-
-impl BlindPropagator {
-    /// The nominal chain of `chain`.
-    pub fn new(chain: &UncertainChain) -> Self {
-        let nominal = chain.nominal();
-        Self {
-            nominal,
-            rotation: nominal.rotation.to_rotation_matrix().into_inner(),
-        }
-    }
-}
-
-impl Propagator for BlindPropagator {
-    fn name(&self) -> &'static str {
-        "blind"
-    }
-
-    #[inline]
-    fn propagate(&self, point: &UncertainPoint) -> Gaussian3 {
-        Gaussian3 {
-            mean: (self.nominal * Point3::from(point.mean)).coords,
-            covariance: self.rotation * point.covariance * self.rotation.transpose(),
-        }
     }
 }

@@ -1,4 +1,4 @@
-//! Sigma-point propagation (MATH.md §3): the paper's symmetric 2n set and the
+//! Sigma-point propagation (docs/math.md §3): the paper's symmetric 2n set and the
 //! scaled unscented transform, with the per-viewpoint precomputation of §3.6.
 //!
 //! Sigma points that perturb only pose parameters leave the measurement at its

@@ -1,4 +1,4 @@
-//! The properties MATH.md §4 requires of the profile.
+//! The properties docs/math.md §4 requires of the profile.
 
 use super::*;
 
@@ -60,7 +60,7 @@ fn peak_sits_at_the_measured_range_and_is_continuous() {
 
 #[test]
 fn peak_height_falls_with_sigma_as_tabulated() {
-    // MATH.md §4.3 table, Δ = 1.
+    // docs/math.md §4.3 table, Δ = 1.
     let p = OpdfParams::new(1.0);
     for (ratio, peak) in [
         (0.5, 0.98),
@@ -84,7 +84,7 @@ fn peak_height_falls_with_sigma_as_tabulated() {
     }
 }
 
-/// The exact 1-D first-hit posterior (MATH.md §4.7), cells x_j = jΔ, π = ½.
+/// The exact 1-D first-hit posterior (docs/math.md §4.7), cells x_j = jΔ, π = ½.
 fn first_hit_oracle(r: f64, sigma: f64, cells: usize) -> Vec<f64> {
     let pi: f64 = 0.5;
     let weights: Vec<f64> = (0..cells)

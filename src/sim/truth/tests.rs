@@ -1,6 +1,6 @@
 //! Statistical tests of the truth draw. Bounds: a variance estimated from N
 //! Gaussian samples has standard error Σ_ii √(2/(N−1)), a covariance entry
-//! √((Σ_ij² + Σ_ii Σ_jj)/(N−1)), a mean √(Σ_ii/N) (MATH.md §6.5). Every entry
+//! √((Σ_ij² + Σ_ii Σ_jj)/(N−1)), a mean √(Σ_ii/N) (docs/math.md §6.5). Every entry
 //! must lie within 5 standard errors (a false alarm per entry ~6e-7).
 
 use super::*;

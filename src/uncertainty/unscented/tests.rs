@@ -99,7 +99,7 @@ fn forty_two_points_or_thirty_when_the_scene_frame_is_exact() {
 
 #[test]
 fn agrees_with_the_jacobian_at_realistic_sigmas() {
-    // MATH.md §3.6: below 1° the two differ far below Monte Carlo noise.
+    // docs/math.md §3.6: below 1° the two differ far below Monte Carlo noise.
     for sa_deg in [0.1f64, 0.5, 1.0] {
         let chain = paper_chain(0.001, sa_deg.to_radians());
         let ut = UnscentedPropagator::new(&chain, SigmaSet::Paper).propagate(&point());
@@ -119,10 +119,10 @@ fn monte_carlo(chain: &UncertainChain, p: &UncertainPoint, n: usize) -> Gaussian
 fn matches_monte_carlo_within_its_standard_errors() {
     // 1° rotation errors (2° on the arm), N = 200 000: each covariance entry
     // of the Monte Carlo estimate has SE √((Σ_ij² + Σ_ii Σ_jj)/(N−1)) and each
-    // mean coordinate √(Σ_ii/N) (MATH.md §6.5). The UT mean must be within
+    // mean coordinate √(Σ_ii/N) (docs/math.md §6.5). The UT mean must be within
     // 5 SE; each covariance entry within 5 SE plus 1% of √(Σ_ii Σ_jj), the
     // fourth-order error the paper's wide set (±√21 σ) is allowed below 1°
-    // (MATH.md §3.6). Measured: the set overestimates σ_z² by 2.3% here and by
+    // (docs/math.md §3.6). Measured: the set overestimates σ_z² by 2.3% here and by
     // 9% at 2°, while the Jacobian stays within 2.2%: see README, "What we found".
     let chain = paper_chain(0.002, 1f64.to_radians());
     let p = point();

@@ -1,0 +1,257 @@
+//! The codebase explains itself: every `§` the code, the tests, the
+//! experiments and the README cite is a heading of docs/math.md, every doc
+//! file they name exists, and the top-level modules import each other without
+//! a cycle (docs/architecture.md).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+const SECTION: char = '\u{a7}';
+
+fn files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            files(&path, out);
+        } else if matches!(
+            path.extension().and_then(|e| e.to_str()),
+            Some("rs" | "toml" | "md" | "sh" | "cpp")
+        ) {
+            out.push(path);
+        }
+    }
+}
+
+/// The files whose references must resolve.
+fn citing_files() -> Vec<PathBuf> {
+    let root = Path::new(ROOT);
+    let mut out = vec![root.join("README.md"), root.join(".ci/run")];
+    for dir in [
+        "src",
+        "tests",
+        "benches",
+        "experiments",
+        "scenes",
+        ".ci",
+        "docs",
+    ] {
+        files(&root.join(dir), &mut out);
+    }
+    // This file names dangling references on purpose, to test the parsers.
+    out.retain(|p| !p.ends_with("tests/doc_refs.rs"));
+    out
+}
+
+/// The section numbers of `text`'s `§` references: `§5.4` gives "5.4";
+/// `§4.3–4.4` and `§1–3` give both ends.
+fn section_refs(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let chars: Vec<char> = text.chars().collect();
+    let number = |mut i: usize| -> (String, usize) {
+        let mut s = String::new();
+        while i < chars.len() && (chars[i].is_ascii_digit() || chars[i] == '.') {
+            s.push(chars[i]);
+            i += 1;
+        }
+        (s.trim_end_matches('.').to_string(), i)
+    };
+    for (i, c) in chars.iter().enumerate() {
+        if *c != SECTION {
+            continue;
+        }
+        let mut j = i + 1;
+        while j < chars.len() && chars[j] == ' ' {
+            j += 1;
+        }
+        let (first, end) = number(j);
+        if first.is_empty() {
+            continue;
+        }
+        out.push(first);
+        if end < chars.len() && (chars[end] == '\u{2013}' || chars[end] == '-') {
+            let (second, _) = number(end + 1);
+            if !second.is_empty() {
+                out.push(second);
+            }
+        }
+    }
+    out
+}
+
+/// The headings of docs/math.md that carry a section number.
+fn math_sections() -> BTreeSet<String> {
+    let math = std::fs::read_to_string(Path::new(ROOT).join("docs/math.md")).unwrap();
+    math.lines()
+        .filter(|l| l.starts_with('#'))
+        .flat_map(section_refs)
+        .collect()
+}
+
+#[test]
+fn every_cited_section_is_a_heading_of_docs_math() {
+    let sections = math_sections();
+    assert!(
+        sections.contains("5.4") && sections.len() > 30,
+        "{sections:?}"
+    );
+    let mut dangling = Vec::new();
+    for path in citing_files() {
+        let text = std::fs::read_to_string(&path).unwrap();
+        for (line_no, line) in text.lines().enumerate() {
+            for r in section_refs(line) {
+                if !sections.contains(&r) {
+                    dangling.push(format!("{}:{}: §{r}", path.display(), line_no + 1));
+                }
+            }
+        }
+    }
+    assert!(
+        dangling.is_empty(),
+        "references to no heading of docs/math.md:\n{}",
+        dangling.join("\n")
+    );
+}
+
+/// Words of `text` that name a Markdown file (`docs/math.md`, `MATH.md`).
+fn doc_names(text: &str) -> Vec<String> {
+    text.split(|c: char| !(c.is_ascii_alphanumeric() || matches!(c, '/' | '_' | '-' | '.')))
+        .map(|w| w.trim_end_matches('.'))
+        .filter(|w| w.ends_with(".md") && w.len() > 3)
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn every_named_doc_file_exists() {
+    let root = Path::new(ROOT);
+    let mut missing = Vec::new();
+    for path in citing_files() {
+        let text = std::fs::read_to_string(&path).unwrap();
+        for (line_no, line) in text.lines().enumerate() {
+            for name in doc_names(line) {
+                let found = root.join(&name).is_file()
+                    || root.join("docs").join(&name).is_file()
+                    || path.parent().is_some_and(|d| d.join(&name).is_file());
+                if !found {
+                    missing.push(format!("{}:{}: {name}", path.display(), line_no + 1));
+                }
+            }
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "doc files named but not in the repository:\n{}",
+        missing.join("\n")
+    );
+}
+
+/// `crate::<module>` references of each top-level module of src/.
+fn module_imports() -> BTreeMap<String, BTreeSet<String>> {
+    let src = Path::new(ROOT).join("src");
+    let modules: Vec<String> = std::fs::read_dir(&src)
+        .unwrap()
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let name = name.trim_end_matches(".rs").to_string();
+            (name != "lib" && name != "main").then_some(name)
+        })
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let mut graph = BTreeMap::new();
+    for module in &modules {
+        let mut paths = Vec::new();
+        files(&src.join(module), &mut paths);
+        let file = src.join(format!("{module}.rs"));
+        if file.is_file() {
+            paths.push(file);
+        }
+        let mut uses = BTreeSet::new();
+        for path in paths {
+            let text = std::fs::read_to_string(&path).unwrap();
+            // Test code may reach anywhere; the library may not.
+            let library = text.split("#[cfg(test)]").next().unwrap_or("");
+            if path.file_name().is_some_and(|n| n == "tests.rs")
+                || path.components().any(|c| c.as_os_str() == "tests")
+            {
+                continue;
+            }
+            for other in &modules {
+                if other != module && library.contains(&format!("crate::{other}")) {
+                    uses.insert(other.clone());
+                }
+            }
+        }
+        graph.insert(module.clone(), uses);
+    }
+    graph
+}
+
+#[test]
+fn top_level_modules_import_each_other_without_a_cycle() {
+    let graph = module_imports();
+    assert!(graph["mapping"].contains("geometry"), "{graph:?}");
+    // Depth-first search for a back edge.
+    fn visit<'a>(
+        node: &'a str,
+        graph: &'a BTreeMap<String, BTreeSet<String>>,
+        state: &mut BTreeMap<&'a str, u8>,
+        path: &mut Vec<&'a str>,
+    ) -> Option<Vec<String>> {
+        match state.get(node) {
+            Some(2) => return None,
+            Some(1) => {
+                let start = path.iter().position(|n| *n == node).unwrap();
+                let mut cycle: Vec<String> = path[start..].iter().map(|s| s.to_string()).collect();
+                cycle.push(node.to_string());
+                return Some(cycle);
+            }
+            _ => {}
+        }
+        state.insert(node, 1);
+        path.push(node);
+        for next in graph.get(node).into_iter().flatten() {
+            if let Some(cycle) = visit(next, graph, state, path) {
+                return Some(cycle);
+            }
+        }
+        path.pop();
+        state.insert(node, 2);
+        None
+    }
+    let mut state = BTreeMap::new();
+    for node in graph.keys() {
+        if let Some(cycle) = visit(node, &graph, &mut state, &mut Vec::new()) {
+            panic!(
+                "import cycle between top-level modules: {}",
+                cycle.join(" -> ")
+            );
+        }
+    }
+    // What docs/architecture.md promises of the mapper and the scorer.
+    for forbidden in ["sim", "eval", "experiment", "cli"] {
+        assert!(
+            !graph["mapping"].contains(forbidden),
+            "mapping imports {forbidden}: the truth must not reach a mapper"
+        );
+    }
+    assert!(!graph["eval"].contains("experiment"), "{graph:?}");
+}
+
+#[test]
+fn the_reference_parsers_find_what_they_must() {
+    let s = SECTION;
+    assert_eq!(
+        section_refs(&format!("see {s}4.3–4.4 and {s} 1–3, {s}5.4.")),
+        ["4.3", "4.4", "1", "3", "5.4"]
+    );
+    assert_eq!(
+        doc_names("(docs/math.md §5.4; the project's MATH.md)."),
+        ["docs/math.md", "MATH.md"]
+    );
+}
