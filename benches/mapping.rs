@@ -6,7 +6,7 @@
 //! OctoMap itself is `bash benches/octomap/compare.sh`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use sigmap::experiment::model::{build_map, Method};
+use sigmap::experiment::model::{build_map, MapperView, Method};
 use sigmap::experiment::{simulate, Experiment};
 use sigmap::geometry::Vector3;
 use std::hint::black_box;
@@ -22,6 +22,7 @@ fn bench(c: &mut Criterion) {
     )))
     .expect("quickstart");
     let run = simulate(&experiment, 1, |_| {}).expect("simulate");
+    let view = MapperView::of(&experiment);
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -37,7 +38,7 @@ fn bench(c: &mut Criterion) {
             b.iter(|| {
                 pool.install(|| {
                     black_box(
-                        build_map(&experiment, &run, method, RESOLUTION, &Vector3::zeros())
+                        build_map(&view, &run.scans, method, RESOLUTION, &Vector3::zeros())
                             .expect("the quickstart maps"),
                     )
                 })
@@ -51,7 +52,7 @@ fn bench(c: &mut Criterion) {
         let mut reps = 0;
         while reps < 3 || start.elapsed() < Duration::from_secs(1) {
             black_box(pool.install(|| {
-                build_map(&experiment, &run, method, RESOLUTION, &Vector3::zeros())
+                build_map(&view, &run.scans, method, RESOLUTION, &Vector3::zeros())
                     .expect("the quickstart maps")
             }));
             reps += 1;
@@ -66,7 +67,7 @@ fn bench(c: &mut Criterion) {
         } else {
             seconds(method)
         };
-        let stats = build_map(&experiment, &run, method, RESOLUTION, &Vector3::zeros())
+        let stats = build_map(&view, &run.scans, method, RESOLUTION, &Vector3::zeros())
             .expect("the quickstart maps")
             .stats();
         println!(

@@ -46,7 +46,7 @@ fn propagated_covariances_are_consistent_with_the_simulated_truth() {
             scan.chain.world_from_robot,
             scan.chain.robot_from_camera,
         );
-        let truth = scan.truth.beams[beam].point.coords;
+        let truth = run.truth.scans[0].beams[beam].point.coords;
         let methods: [Box<dyn Propagator>; 3] = [
             Box::new(BlindPropagator::new(&chain)),
             Box::new(JacobianPropagator::new(&chain)),

@@ -255,3 +255,37 @@ fn the_reference_parsers_find_what_they_must() {
         ["docs/math.md", "MATH.md"]
     );
 }
+
+#[test]
+fn map_building_cannot_name_the_truth() {
+    // `build_map` takes a `MapperView` (scanner, range model, map settings)
+    // and `Scan`s (measurements, believed chain); the truth is `ScanTruth` /
+    // `RunTruth`, the scene is `Scene`. The map builder's library code must
+    // name none of them (docs/architecture.md).
+    let path = Path::new(ROOT).join("src/experiment/model.rs");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let library = text.split("#[cfg(test)]").next().unwrap();
+    assert!(
+        library.contains("pub fn build_map("),
+        "model.rs builds maps"
+    );
+    for word in [
+        "Truth",
+        ".truth",
+        "SimulatedRun",
+        "Scene",
+        "experiment.scene",
+    ] {
+        assert!(
+            !library.contains(word),
+            "src/experiment/model.rs names `{word}`: the truth and the scene must not reach a mapper"
+        );
+    }
+    let scan = std::fs::read_to_string(Path::new(ROOT).join("src/sim/scan.rs")).unwrap();
+    let fields = scan
+        .split("pub struct Scan {")
+        .nth(1)
+        .and_then(|rest| rest.split("\n}").next())
+        .expect("sim/scan.rs defines Scan");
+    assert!(!fields.contains("Truth"), "Scan carries the truth:{fields}");
+}

@@ -74,7 +74,7 @@ fn results_do_not_depend_on_threads_and_survive_interruption() {
             .collect()
     };
     let mut first = rows(1);
-    first[0].f1 = 0.123456;
+    first[0].set("f1", 0.123456);
     let timings: Vec<TimingRow> = csv::Reader::from_path(one.join("timings.csv"))
         .unwrap()
         .deserialize()

@@ -3,11 +3,10 @@
 
 use super::{progress_bar, with_threads, MapArgs};
 use crate::error::{Error, Result};
-use crate::experiment::model::{build_map, ray_inputs};
-use crate::experiment::{self, Experiment, SimulatedRun};
+use crate::experiment::model::{build_map, MapperView};
+use crate::experiment::{self, write_rays, Experiment};
 use crate::mapping::octomap_io::write_octree;
-use crate::mapping::Clamp;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// `sigmap map`.
@@ -33,21 +32,22 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
     })??;
     bar.finish_and_clear();
+    let view = MapperView::of(&experiment);
     if let Some(path) = &args.export_rays {
-        export_rays(path, &experiment, &run)?;
+        write_rays(path, &view, &run.scans)?;
     }
     let start = Instant::now();
     let tree = with_threads(args.run.threads, || {
         build_map(
-            &experiment,
-            &run,
+            &view,
+            &run.scans,
             args.method,
             resolution,
             &crate::geometry::Vector3::zeros(),
         )
     })??;
     let seconds = start.elapsed().as_secs_f64();
-    write_octree(&out, &tree, Clamp::OCTOMAP)?;
+    write_octree(&out, &tree, experiment.map.clamp())?;
     let stats = tree.stats();
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
     if !args.run.quiet {
@@ -66,30 +66,4 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         );
     }
     Ok(())
-}
-
-/// The rays OctoMap's `insertPointCloud` gets: per scan, the origin and the
-/// end points (no-return beams as points at twice the maximum range, which
-/// OctoMap truncates to free space). Little-endian:
-/// `"SIGMAPRAYS1\n"`, `f32` max range, `u32` scans; per scan `f32` origin x y z,
-/// `u32` n, n × `f32` x y z.
-pub fn export_rays(path: &Path, experiment: &Experiment, run: &SimulatedRun) -> Result<()> {
-    let mut out = b"SIGMAPRAYS1\n".to_vec();
-    let max_range = experiment.scanner.max_range;
-    out.extend_from_slice(&(max_range as f32).to_le_bytes());
-    out.extend_from_slice(&(run.scans.len() as u32).to_le_bytes());
-    for scan in &run.scans {
-        let (origin, hits, misses) = ray_inputs(experiment, scan);
-        for v in origin.iter() {
-            out.extend_from_slice(&(*v as f32).to_le_bytes());
-        }
-        out.extend_from_slice(&((hits.len() + misses.len()) as u32).to_le_bytes());
-        let far = misses.iter().map(|d| origin + d * (2.0 * max_range));
-        for p in hits.iter().copied().chain(far) {
-            for v in p.iter() {
-                out.extend_from_slice(&(*v as f32).to_le_bytes());
-            }
-        }
-    }
-    crate::files::write_file(path, &out)
 }

@@ -2,11 +2,10 @@
 
 use super::PropagateArgs;
 use crate::error::{Error, Result};
-use crate::files::write_folder;
-use crate::plot::{panels, Panel, Series};
-use crate::uncertainty::compare::{compare, log_space, sweep, MethodResult, SweepRow};
+use crate::experiment::figures::write_propagation_sweep;
+use crate::uncertainty::compare::{compare, log_space, sweep, MethodResult};
 use crate::uncertainty::{read_chain_file, UncertainPoint};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
 /// Most Monte Carlo draws one command makes (about a minute of work).
@@ -115,10 +114,7 @@ fn run_sweep(
         args.samples,
         args.seed,
     );
-    write_folder(&out, |dir| {
-        write_sweep_csv(&dir.join("sweep.csv"), &rows)?;
-        plot_sweep(&dir.join("sweep.svg"), &rows, args.samples)
-    })?;
+    write_propagation_sweep(&out, &rows, args.samples)?;
     eprintln!(
         "wrote {}/sweep.csv and sweep.svg ({} rotation sigmas, Monte Carlo {} draws each)",
         out.display(),
@@ -126,63 +122,4 @@ fn run_sweep(
         args.samples
     );
     Ok(())
-}
-
-fn write_sweep_csv(path: &Path, rows: &[SweepRow]) -> Result<()> {
-    let mut w = csv::Writer::from_path(path).map_err(|e| Error::io(path, e.into()))?;
-    for row in rows {
-        w.serialize(row).map_err(|e| Error::io(path, e.into()))?;
-    }
-    w.flush().map_err(|e| Error::io(path, e))
-}
-
-fn plot_sweep(path: &Path, rows: &[SweepRow], samples: usize) -> Result<()> {
-    let series = |metric: fn(&SweepRow) -> f64| -> Vec<Series> {
-        let mut out: Vec<Series> = ["blind", "jacobian", "unscented"]
-            .iter()
-            .map(|m| Series {
-                intervals: Vec::new(),
-                name: m.to_string(),
-                points: rows
-                    .iter()
-                    .filter(|r| r.method == *m)
-                    .map(|r| (r.rotation_sigma, metric(r)))
-                    .collect(),
-            })
-            .collect();
-        out.push(Series {
-            intervals: Vec::new(),
-            name: format!("MC noise (N={samples})"),
-            points: rows
-                .iter()
-                .filter(|r| r.method == "jacobian")
-                .map(|r| (r.rotation_sigma, r.mc_relative_se))
-                .collect(),
-        });
-        out
-    };
-    let frob = series(|r| r.relative_frobenius);
-    let mut kl = series(|r| r.kl_divergence);
-    kl.pop();
-    panels(
-        path,
-        &[
-            Panel {
-                title: "covariance error vs Monte Carlo",
-                x_label: "rotation sigma of every link (rad)",
-                y_label: "relative Frobenius error",
-                log_x: true,
-                log_y: true,
-                series: &frob,
-            },
-            Panel {
-                title: "KL(Monte Carlo || method)",
-                x_label: "rotation sigma of every link (rad)",
-                y_label: "KL divergence (nats)",
-                log_x: true,
-                log_y: true,
-                series: &kl,
-            },
-        ],
-    )
 }

@@ -2,52 +2,7 @@
 
 use super::RegressArgs;
 use crate::error::{Error, Result};
-use crate::experiment::regress::compare;
-use crate::experiment::runner::SummaryRow;
-use std::collections::BTreeSet;
-use std::path::Path;
-
-/// The rows of a `summary.csv`: at least one, none repeated.
-fn read_summary(path: &Path) -> Result<Vec<SummaryRow>> {
-    if !path.is_file() {
-        return Err(Error::input(
-            path,
-            if path.exists() {
-                "is not a file"
-            } else {
-                "file not found"
-            },
-        ));
-    }
-    let not_summary = |e: &dyn std::fmt::Display| {
-        Error::input(
-            path,
-            format!("is not a summary.csv written by `sigmap run` ({e})"),
-        )
-    };
-    let mut reader = csv::Reader::from_path(path).map_err(|e| not_summary(&e))?;
-    let rows: Vec<SummaryRow> = reader
-        .deserialize()
-        .collect::<std::result::Result<_, _>>()
-        .map_err(|e| not_summary(&e))?;
-    if rows.is_empty() {
-        return Err(Error::input(path, "holds no rows: nothing to compare"));
-    }
-    let mut seen = BTreeSet::new();
-    if let Some(r) = rows
-        .iter()
-        .find(|r| !seen.insert((&r.cell, &r.method, &r.metric)))
-    {
-        return Err(Error::input(
-            path,
-            format!(
-                "lists method '{}', metric '{}' of cell '{}' twice",
-                r.method, r.metric, r.cell
-            ),
-        ));
-    }
-    Ok(rows)
-}
+use crate::experiment::regress::{compare, read_summary};
 
 /// `sigmap regress`.
 pub(crate) fn run(args: RegressArgs) -> Result<()> {

@@ -3,6 +3,7 @@
 
 use crate::error::{read_toml_with, Error, Result};
 use crate::geometry::{Isometry3, Pose, Vector3};
+use crate::mapping::settings::{MapProbabilities, MapSettings};
 use crate::sim::ik::{self, IkOptions, IkTarget};
 use crate::sim::profile::ErrorProfile;
 use crate::sim::robot::{KinematicChain, Robot};
@@ -31,6 +32,9 @@ struct ExperimentFile {
     grid_offset: bool,
     #[serde(default)]
     beam_pooling: bool,
+    /// `[map]`: each setting may be swept as `experiment.map.<name>` once set.
+    #[serde(default)]
+    map: MapProbabilities,
     seeds: Option<Vec<u64>>,
     methods: Option<Vec<String>>,
     robot: MountSpec,
@@ -156,15 +160,14 @@ pub struct Experiment {
     pub seed: u64,
     /// The map's finest voxel edge (m): `resolution` in the file, default 0.01.
     pub resolution: f64,
-    /// Risk level ε of the cell model (docs/math.md §5.4): a beam calls a
-    /// cell free only when `P(λ > b) ≥ 1 − ε`. `risk` in the file; off when absent.
-    pub risk: Option<f64>,
     /// Whether the scene sits at a sub-voxel offset drawn from each run's seed
     /// (`grid_offset = true`), so that no face lies on a cell plane by design.
     pub grid_offset: bool,
-    /// Pool each viewpoint's beams on the plane they share before the cell
-    /// model (`beam_pooling = true`; docs/math.md §5.5). OPDF methods only.
-    pub beam_pooling: bool,
+    /// How maps are built: OctoMap's hit, miss and clamp (`[map]`), the
+    /// cell model's bounds (`[map]`) and risk level ε (`risk`, off when
+    /// absent; docs/math.md §5.4), and beam pooling (`beam_pooling = true`;
+    /// §5.5). Defaults: OctoMap's and the paper's values.
+    pub map: MapSettings,
     /// The seeds of `sigmap run` (`seeds = [..]`, default `[seed]`).
     pub seeds: Vec<u64>,
     /// The modelling methods compared by `sigmap run`
@@ -313,13 +316,7 @@ impl Experiment {
                 file.resolution
             )));
         }
-        if let Some(risk) = file.risk {
-            if !(risk.is_finite() && (1e-9..=0.5).contains(&risk)) {
-                return Err(bad(format!(
-                    "risk = {risk} must be a probability between 1e-9 and 0.5 (leave it out for none)"
-                )));
-            }
-        }
+        let map = MapSettings::new(&file.map, file.risk, file.beam_pooling).map_err(&bad)?;
         let seeds = file.seeds.clone().unwrap_or_else(|| vec![file.seed]);
         if seeds.is_empty() {
             return Err(bad("`seeds` is empty".into()));
@@ -368,9 +365,8 @@ impl Experiment {
             source: path.to_path_buf(),
             seed: file.seed,
             resolution: file.resolution,
-            risk: file.risk,
             grid_offset: file.grid_offset,
-            beam_pooling: file.beam_pooling,
+            map,
             seeds,
             methods,
             scene,

@@ -237,7 +237,7 @@ mod tests {
             .unwrap();
         r.seed = seed;
         r.method = method.into();
-        r.f1 = f1;
+        r.set("f1", f1);
         r
     }
 
@@ -304,7 +304,7 @@ mod tests {
         wanted.keep(&mut rows);
         let kept: Vec<(u64, &str, f64)> = rows
             .iter()
-            .map(|r| (r.seed, r.method.as_str(), r.f1))
+            .map(|r| (r.seed, r.method.as_str(), r.get("f1")))
             .collect();
         assert_eq!(
             kept,

@@ -1,18 +1,23 @@
-//! Building a map from a simulated run with one modelling method: what the
-//! modeller can do with the scans alone (the truth never enters here).
+//! Building a map from a run's scans with one modelling method: what the
+//! modeller can do with the scans alone. The truth cannot enter: map
+//! building takes a [`MapperView`] (scanner geometry, range-error model, map
+//! settings; no scene) and [`Scan`]s (measurements and the believed chain;
+//! the simulator keeps the truth in types of its own, which this file never
+//! names: tests/doc_refs.rs checks it).
 
-use super::{Experiment, SimulatedRun};
+use super::Experiment;
 use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Vector3};
-use crate::mapping::chord::CellModel;
-use crate::mapping::merge::{merge, MergeOptions};
+use crate::mapping::merge::merge;
 use crate::mapping::pooling::pool_ranges;
 use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::BeamEnd;
 use crate::mapping::viewpoint::{local_grid, Raster};
-use crate::mapping::Octree;
+use crate::mapping::{MapSettings, Octree};
 use crate::sim::scan::{BeamStatus, Scan};
+use crate::sim::sensor::RangeModel;
+use crate::sim::sensor::Scanner;
 use crate::uncertainty::{
     BlindPropagator, JacobianPropagator, Propagator, SigmaSet, UncertainChain, UncertainPoint,
     UnscentedPropagator,
@@ -80,6 +85,30 @@ impl FromStr for Method {
     }
 }
 
+/// What a mapper may know of an experiment: the scanner's geometry, the
+/// range-error model it is calibrated with, and the map settings. Neither
+/// the scene nor any truth.
+#[derive(Clone, Copy)]
+pub struct MapperView<'a> {
+    /// Beam directions, raster and range limits.
+    pub scanner: &'a Scanner,
+    /// The range noise model (σ as a function of range).
+    pub range: &'a RangeModel,
+    /// How maps are built and fused.
+    pub settings: &'a MapSettings,
+}
+
+impl<'a> MapperView<'a> {
+    /// The view of `experiment` a mapper gets.
+    pub fn of(experiment: &'a Experiment) -> Self {
+        Self {
+            scanner: &experiment.scanner,
+            range: &experiment.profile.range,
+            settings: &experiment.map,
+        }
+    }
+}
+
 /// The propagator of an OPDF method for one viewpoint's chain: the
 /// per-point marginal (for `correlated`, the full covariance, as its
 /// consistency is checked); `None` for the ray update, which propagates nothing.
@@ -123,7 +152,7 @@ pub fn scan_chain(scan: &Scan) -> UncertainChain {
 /// beams as directions; too-close and dropped beams carry nothing), from
 /// the scan's [`measured_points`].
 pub fn beam_ends(
-    experiment: &Experiment,
+    view: &MapperView,
     scan: &Scan,
     points: &[Option<UncertainPoint>],
     propagator: &dyn Propagator,
@@ -136,7 +165,7 @@ pub fn beam_ends(
         .into_inner();
     scan.measurements
         .par_iter()
-        .zip(experiment.scanner.directions.par_iter())
+        .zip(view.scanner.directions.par_iter())
         .zip(points.par_iter())
         .filter_map(|((m, d), point)| match (m.status, point) {
             (BeamStatus::Hit, Some(point)) => {
@@ -158,16 +187,16 @@ pub fn beam_ends(
 /// (`None` without a hit): the raw range, or with `beam_pooling` the range
 /// pooled on the viewpoint's local plane (docs/math.md §5.5). The same for
 /// every method: compute it once per scan.
-pub fn measured_points(experiment: &Experiment, scan: &Scan) -> Vec<Option<UncertainPoint>> {
-    let range = &experiment.profile.range;
-    let directions = &experiment.scanner.directions;
+pub fn measured_points(view: &MapperView, scan: &Scan) -> Vec<Option<UncertainPoint>> {
+    let range = view.range;
+    let directions = &view.scanner.directions;
     let ranges: Vec<Option<f64>> = scan
         .measurements
         .iter()
         .map(|m| (m.status == BeamStatus::Hit).then_some(m.range))
         .collect();
-    let pooled = if experiment.beam_pooling {
-        pool_ranges(experiment.scanner.columns, directions, &ranges, |r| {
+    let pooled = if view.settings.beam_pooling {
+        pool_ranges(view.scanner.columns, directions, &ranges, |r| {
             range.sigma(r)
         })
     } else {
@@ -188,31 +217,13 @@ pub fn measured_points(experiment: &Experiment, scan: &Scan) -> Vec<Option<Uncer
         .collect()
 }
 
-/// For each hit of a scan (its [`measured_points`]): the error `truth −
-/// propagated mean` and the propagated covariance, for consistency checks
-/// against the simulator.
-pub fn beam_ends_with_truth(
-    scan: &Scan,
-    points: &[Option<UncertainPoint>],
-    propagator: &dyn Propagator,
-) -> Vec<(Vector3, crate::geometry::Matrix3)> {
-    points
-        .iter()
-        .zip(&scan.truth.beams)
-        .filter_map(|(point, t)| {
-            let g = propagator.propagate(point.as_ref()?);
-            Some((t.point.coords - g.mean, g.covariance))
-        })
-        .collect()
-}
-
-/// Builds the map of a run at `resolution` with `method`, in the map frame
-/// `map = scene + offset` (zero: the scene frame; see `Experiment::map_offset`).
-/// Fails only when the `correlated` method's shared-motion step would not
-/// fit in memory at this resolution.
+/// Builds the map of a run's `scans` at `resolution` with `method`, in the
+/// map frame `map = scene + offset` (zero: the scene frame; see
+/// `Experiment::map_offset`). Fails only when the `correlated` method's
+/// shared-motion step would not fit in memory at this resolution.
 pub fn build_map(
-    experiment: &Experiment,
-    run: &SimulatedRun,
+    view: &MapperView,
+    scans: &[Scan],
     method: Method,
     resolution: f64,
     offset: &Vector3,
@@ -220,19 +231,19 @@ pub fn build_map(
     let measured: Vec<_> = if method == Method::RayUpdate {
         Vec::new() // the ray update takes the raw hits
     } else {
-        run.scans
+        scans
             .iter()
-            .map(|scan| measured_points(experiment, scan))
+            .map(|scan| measured_points(view, scan))
             .collect()
     };
-    build_map_measured(experiment, run, &measured, method, resolution, offset)
+    build_map_measured(view, scans, &measured, method, resolution, offset)
 }
 
 /// [`build_map`] from the scans' [`measured_points`] (one per scan; unused
 /// by the ray update), computed once for all methods of a run.
 pub fn build_map_measured(
-    experiment: &Experiment,
-    run: &SimulatedRun,
+    view: &MapperView,
+    scans: &[Scan],
     measured: &[Vec<Option<UncertainPoint>>],
     method: Method,
     resolution: f64,
@@ -240,16 +251,14 @@ pub fn build_map_measured(
 ) -> Result<Octree> {
     let mut tree = Octree::new(resolution);
     let raster = Raster {
-        horizontal: &experiment.scanner.horizontal_angles,
-        vertical: &experiment.scanner.vertical_angles,
+        horizontal: &view.scanner.horizontal_angles,
+        vertical: &view.scanner.vertical_angles,
     };
-    let max_range = experiment.scanner.max_range;
-    let options = MergeOptions {
-        model: CellModel::with_risk(experiment.risk),
-        ..MergeOptions::default()
-    };
-    let mut updater = RayUpdater::default();
-    for (i, scan) in run.scans.iter().enumerate() {
+    let max_range = view.scanner.max_range;
+    let settings: &MapSettings = view.settings;
+    let options = settings.merge_options();
+    let mut updater = RayUpdater::new(settings.update);
+    for (i, scan) in scans.iter().enumerate() {
         let full_chain = scan_chain(scan);
         let chain = if method == Method::Correlated {
             split_chain(&full_chain, false)
@@ -257,14 +266,14 @@ pub fn build_map_measured(
             full_chain
         };
         let Some(propagator) = propagator(method, &chain) else {
-            let (mut origin, mut hits, misses) = ray_inputs(experiment, scan);
+            let (mut origin, mut hits, misses) = ray_inputs(view, scan);
             origin += offset;
             hits.iter_mut().for_each(|h| *h += offset);
             updater.insert_scan(&mut tree, &origin, &hits, &misses, max_range);
             continue;
         };
         let origin = propagator.origin();
-        let mut beams = beam_ends(experiment, scan, &measured[i], propagator.as_ref());
+        let mut beams = beam_ends(view, scan, &measured[i], propagator.as_ref());
         for beam in &mut beams {
             if let BeamEnd::Hit { point, .. } = beam {
                 *point += offset;
@@ -282,7 +291,7 @@ pub fn build_map_measured(
         merge(&mut tree, &grid, &options);
     }
     if method == Method::Correlated {
-        let covariance_at = shared_covariance(run, offset);
+        let covariance_at = shared_covariance(scans, offset);
         expect_over_shared_motion(&mut tree, &covariance_at, options.clamp)
             .map_err(|e| Error::Usage(format!("method correlated: {e}")))?;
     }
@@ -292,10 +301,10 @@ pub fn build_map_measured(
 
 /// `Σ(x)`: the covariance of the displacement of map point `x` by the
 /// shared pose errors, the mean over the run's viewpoints of
-/// `J_shared Γ_shared J_sharedᵀ` (first order; docs/math.md §6.6).
-fn shared_covariance(run: &SimulatedRun, offset: &Vector3) -> impl Fn(&Point3) -> Matrix3 + Sync {
-    let views: Vec<_> = run
-        .scans
+/// `J_shared Γ_shared J_sharedᵀ` (first order; docs/math.md §6.6), from the
+/// scans' believed chains.
+fn shared_covariance(scans: &[Scan], offset: &Vector3) -> impl Fn(&Point3) -> Matrix3 + Sync {
+    let views: Vec<_> = scans
         .iter()
         .map(|scan| {
             let chain = split_chain(&scan_chain(scan), true);
@@ -322,12 +331,12 @@ fn shared_covariance(run: &SimulatedRun, offset: &Vector3) -> impl Fn(&Point3) -
 
 /// The nominal origin, measured end points and no-return directions of a
 /// scan, in the scene frame (what OctoMap's `insertPointCloud` is given).
-pub fn ray_inputs(experiment: &Experiment, scan: &Scan) -> (Point3, Vec<Point3>, Vec<Vector3>) {
+pub fn ray_inputs(view: &MapperView, scan: &Scan) -> (Point3, Vec<Point3>, Vec<Vector3>) {
     let pose = scan.chain.scene_from_camera();
     let origin = Point3::from(pose.translation.vector);
     let mut hits = Vec::with_capacity(scan.measurements.len());
     let mut misses = Vec::new();
-    for (m, d) in scan.measurements.iter().zip(&experiment.scanner.directions) {
+    for (m, d) in scan.measurements.iter().zip(&view.scanner.directions) {
         match m.status {
             BeamStatus::Hit => hits.push(pose * Point3::from(d * m.range)),
             BeamStatus::NoReturn => misses.push(pose.rotation * d),
@@ -380,7 +389,8 @@ mod tests {
         let offset = Vector3::zeros();
         let maps = |experiment: &Experiment| {
             let run = super::super::simulate(experiment, 1, |_| {}).unwrap();
-            let map = |m| build_map(experiment, &run, m, 0.02, &offset).unwrap();
+            let view = MapperView::of(experiment);
+            let map = |m| build_map(&view, &run.scans, m, 0.02, &offset).unwrap();
             (map(Method::Unscented), map(Method::Correlated))
         };
         let (unscented, correlated) = maps(&experiment);
@@ -401,16 +411,16 @@ mod tests {
         // only by the shared-motion step, which must have run.
         let experiment = quickstart();
         let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
-        let mut believed_exact = run.clone();
-        for scan in &mut believed_exact.scans {
+        let mut believed_exact = run.scans.clone();
+        for scan in &mut believed_exact {
             scan.chain.world_from_scene.covariance = Matrix6::zeros();
             scan.chain.robot_from_camera.covariance = Matrix6::zeros();
         }
         let offset = Vector3::zeros();
-        let map = |run: &SimulatedRun| {
-            build_map(&experiment, run, Method::Correlated, 0.02, &offset).unwrap()
-        };
-        let (with_shared, without) = (map(&run), map(&believed_exact));
+        let view = MapperView::of(&experiment);
+        let map =
+            |scans: &[Scan]| build_map(&view, scans, Method::Correlated, 0.02, &offset).unwrap();
+        let (with_shared, without) = (map(&run.scans), map(&believed_exact));
         assert_ne!(with_shared, without, "the shared-motion step ran");
     }
 
@@ -420,7 +430,7 @@ mod tests {
         let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
         let scan = &run.scans[0];
         let along = |e: &Experiment| -> Vec<(f64, f64)> {
-            measured_points(e, scan)
+            measured_points(&MapperView::of(e), scan)
                 .iter()
                 .zip(&e.scanner.directions)
                 .filter_map(|(p, d)| {
@@ -435,7 +445,7 @@ mod tests {
         let sigma = |r: f64| experiment.profile.range.sigma(r);
         let raw = along(&experiment);
         assert!(raw.iter().all(|(r, s)| (s - sigma(*r)).abs() < 1e-12));
-        experiment.beam_pooling = true;
+        experiment.map.beam_pooling = true;
         let pooled = along(&experiment);
         assert_eq!(pooled.len(), raw.len());
         let narrowed = pooled.iter().filter(|(r, s)| *s < 0.6 * sigma(*r)).count();

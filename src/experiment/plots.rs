@@ -131,7 +131,7 @@ pub fn plot_scores(
     panels(path, &list)?;
     // And every metric of summary.csv on its own chart, beside the overview.
     let dir = path.parent().unwrap_or(Path::new("."));
-    for metric in super::runner::SUMMARY_METRICS {
+    for metric in super::metrics::summarised().map(|m| m.name) {
         let series = series_for(metric);
         panels(
             &dir.join(format!("score_{metric}.svg")),

@@ -1,14 +1,20 @@
 //! The regression gate: a summary against a committed baseline, metric by
 //! metric, with per-metric tolerances.
 
+use super::metrics::Tolerance;
 use super::runner::SummaryRow;
+use crate::error::{Error, Result};
+use std::collections::BTreeSet;
+use std::path::Path;
 
-/// The default allowed drift of a metric's mean: absolute 0.01 for scores in
-/// [0, 1], 5% of the baseline for ANEES and log-loss.
+/// The default allowed drift of a metric's mean, from the metrics table
+/// (absolute 0.01 for scores in [0, 1], 5% of the baseline for ANEES and
+/// log-loss); 0.01 for a metric the table does not know.
 pub fn default_tolerance(metric: &str, baseline: f64) -> f64 {
-    match metric {
-        "anees" | "log_loss" => 0.05 * baseline.abs(),
-        _ => 0.01,
+    match super::metrics::metric(metric).map(|m| m.tolerance) {
+        Some(Tolerance::Relative(fraction)) => fraction * baseline.abs(),
+        Some(Tolerance::Absolute(drift)) => drift,
+        Some(Tolerance::NotSummarised) | None => 0.01,
     }
 }
 
@@ -68,6 +74,48 @@ pub fn compare(
             }
         })
         .collect()
+}
+
+/// The rows of a `summary.csv`: at least one, none repeated.
+pub fn read_summary(path: &Path) -> Result<Vec<SummaryRow>> {
+    if !path.is_file() {
+        return Err(Error::input(
+            path,
+            if path.exists() {
+                "is not a file"
+            } else {
+                "file not found"
+            },
+        ));
+    }
+    let not_summary = |e: &dyn std::fmt::Display| {
+        Error::input(
+            path,
+            format!("is not a summary.csv written by `sigmap run` ({e})"),
+        )
+    };
+    let mut reader = csv::Reader::from_path(path).map_err(|e| not_summary(&e))?;
+    let rows: Vec<SummaryRow> = reader
+        .deserialize()
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| not_summary(&e))?;
+    if rows.is_empty() {
+        return Err(Error::input(path, "holds no rows: nothing to compare"));
+    }
+    let mut seen = BTreeSet::new();
+    if let Some(r) = rows
+        .iter()
+        .find(|r| !seen.insert((&r.cell, &r.method, &r.metric)))
+    {
+        return Err(Error::input(
+            path,
+            format!(
+                "lists method '{}', metric '{}' of cell '{}' twice",
+                r.method, r.metric, r.cell
+            ),
+        ));
+    }
+    Ok(rows)
 }
 
 #[cfg(test)]

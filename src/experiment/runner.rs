@@ -1,78 +1,24 @@
 //! `sigmap run`: every seed of an experiment, every method on each seed's
 //! scans (common random numbers), scored against the ground truth.
 
+use super::metrics::{Measured, METRICS};
 use super::model::{
-    beam_ends_with_truth, build_map_measured, measured_points, propagator, scan_chain, Method,
+    build_map_measured, measured_points, propagator, scan_chain, MapperView, Method,
 };
 use super::{simulate, Experiment};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::voxelise_at;
 use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
+use crate::geometry::{Matrix3, Vector3};
 use crate::mapping::Octree;
+use crate::sim::scan::ScanTruth;
 use crate::uncertainty::consistency::{nees, student_t_quantile, ConsistencyReport};
+use crate::uncertainty::{Propagator, UncertainPoint};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
-/// One row of `runs.csv`: a seed, a method, and every score.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct RunRow {
-    /// The sweep cell, `field=value;...` (empty without a sweep).
-    pub cell: String,
-    /// The run's seed.
-    pub seed: u64,
-    /// The modelling method.
-    pub method: String,
-    /// Map resolution (m).
-    pub resolution: f64,
-    /// Observable cells scored.
-    pub observable_cells: usize,
-    /// Truly occupied observable cells.
-    pub occupied_cells: usize,
-    /// Occupied precision.
-    pub precision: f64,
-    /// Occupied recall.
-    pub recall: f64,
-    /// Occupied F1.
-    pub f1: f64,
-    /// Occupied IoU.
-    pub iou: f64,
-    /// Truly occupied cells called free / truly occupied.
-    pub false_free_rate: f64,
-    /// The same within one cell of a surface.
-    pub false_free_rate_margin: f64,
-    /// Truly free cells called occupied / truly free.
-    pub false_occupied_rate: f64,
-    /// Unknown / observable.
-    pub unknown_fraction: f64,
-    /// Brier score.
-    pub brier: f64,
-    /// Log-loss.
-    pub log_loss: f64,
-    /// ROC AUC.
-    pub roc_auc: f64,
-    /// ANEES of the propagated points against the true surface points (NaN for ray_update).
-    pub anees: f64,
-    /// Two-sided 95% χ² band of ANEES for this many independent points; the
-    /// points of a viewpoint share its pose error, so read it as a reference.
-    pub anees_low: f64,
-    /// Upper end of that band.
-    pub anees_high: f64,
-    /// NEES of one point of the run (the first hit of the first viewpoint):
-    /// independent across seeds, so its mean over N seeds has the χ²₃ₙ/N
-    /// band that the run's ANEES does not (docs/math.md §6.6).
-    pub nees_point: f64,
-    /// Share of true points inside the 1, 2, 3 sigma ellipsoids.
-    pub coverage_1sigma: f64,
-    /// See `coverage_1sigma`.
-    pub coverage_2sigma: f64,
-    /// See `coverage_1sigma`.
-    pub coverage_3sigma: f64,
-    /// Octree nodes.
-    pub nodes: usize,
-    /// Octree bytes.
-    pub bytes: usize,
-}
+pub use super::metrics::RunRow;
 
 /// Stage timings of one (seed, method), for `timings.csv` (they vary run to run).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -115,22 +61,23 @@ pub fn run_seed(
     let observable = observable_cells(
         &experiment.scanner.directions,
         experiment.scanner.max_range,
-        run.scans.iter().map(|scan| &scan.truth),
+        &run.truth.scans,
         experiment.resolution,
         &offset,
     );
     // What each scan measured (pooled or not): the same for every method.
+    let view = MapperView::of(experiment);
     let measured: Vec<_> = run
         .scans
         .iter()
-        .map(|scan| measured_points(experiment, scan))
+        .map(|scan| measured_points(&view, scan))
         .collect();
     let (mut rows, mut timings, mut maps) = (Vec::new(), Vec::new(), Vec::new());
     for &method in &experiment.methods {
         let start = Instant::now();
         let map = build_map_measured(
-            experiment,
-            &run,
+            &view,
+            &run.scans,
             &measured,
             method,
             experiment.resolution,
@@ -142,9 +89,9 @@ pub fn run_seed(
         // Propagated points against the true surface points. Points of one
         // viewpoint share its pose error: the χ² bounds do not apply here.
         let mut pairs = Vec::new();
-        for (scan, points) in run.scans.iter().zip(&measured) {
+        for ((scan, truth), points) in run.scans.iter().zip(&run.truth.scans).zip(&measured) {
             if let Some(p) = propagator(method, &scan_chain(scan)) {
-                pairs.extend(beam_ends_with_truth(scan, points, p.as_ref()));
+                pairs.extend(errors_against_truth(truth, points, p.as_ref()));
             }
         }
         let consistency =
@@ -152,36 +99,20 @@ pub fn run_seed(
         let nees_point = pairs.first().map_or(f64::NAN, |(e, c)| nees(e, c));
         let score_s = start.elapsed().as_secs_f64();
         let stats = map.stats();
-        let c = |f: fn(&ConsistencyReport) -> f64| consistency.as_ref().map_or(f64::NAN, f);
         let cell = Experiment::cell_label(&experiment.cell);
-        rows.push(RunRow {
-            cell: cell.clone(),
-            seed,
-            method: method.as_str().into(),
-            resolution: experiment.resolution,
-            observable_cells: s.observable_cells,
-            occupied_cells: s.occupied_cells,
-            precision: s.precision,
-            recall: s.recall,
-            f1: s.f1,
-            iou: s.iou,
-            false_free_rate: s.false_free_rate,
-            false_free_rate_margin: s.false_free_rate_margin,
-            false_occupied_rate: s.false_occupied_rate,
-            unknown_fraction: s.unknown_fraction,
-            brier: s.brier,
-            log_loss: s.log_loss,
-            roc_auc: s.roc_auc,
-            anees: c(|r| r.anees),
-            anees_low: c(|r| r.bounds.0),
-            anees_high: c(|r| r.bounds.1),
+        let measured = Measured {
+            scores: &s,
+            consistency: consistency.as_ref(),
             nees_point,
-            coverage_1sigma: c(|r| r.coverage[0]),
-            coverage_2sigma: c(|r| r.coverage[1]),
-            coverage_3sigma: c(|r| r.coverage[2]),
-            nodes: stats.nodes,
-            bytes: stats.bytes,
-        });
+            stats: &stats,
+        };
+        rows.push(RunRow::new(
+            cell.clone(),
+            seed,
+            method.as_str(),
+            experiment.resolution,
+            &measured,
+        ));
         timings.push(TimingRow {
             cell,
             seed,
@@ -195,46 +126,22 @@ pub fn run_seed(
     Ok((rows, timings, maps))
 }
 
-/// The metrics summarised in `summary.csv`.
-pub const SUMMARY_METRICS: [&str; 16] = [
-    "precision",
-    "recall",
-    "f1",
-    "iou",
-    "false_free_rate",
-    "false_free_rate_margin",
-    "false_occupied_rate",
-    "unknown_fraction",
-    "brier",
-    "log_loss",
-    "roc_auc",
-    "anees",
-    "nees_point",
-    "coverage_1sigma",
-    "coverage_2sigma",
-    "coverage_3sigma",
-];
-
-fn metric(row: &RunRow, name: &str) -> f64 {
-    match name {
-        "precision" => row.precision,
-        "recall" => row.recall,
-        "f1" => row.f1,
-        "iou" => row.iou,
-        "false_free_rate" => row.false_free_rate,
-        "false_free_rate_margin" => row.false_free_rate_margin,
-        "false_occupied_rate" => row.false_occupied_rate,
-        "unknown_fraction" => row.unknown_fraction,
-        "brier" => row.brier,
-        "log_loss" => row.log_loss,
-        "roc_auc" => row.roc_auc,
-        "anees" => row.anees,
-        "nees_point" => row.nees_point,
-        "coverage_1sigma" => row.coverage_1sigma,
-        "coverage_2sigma" => row.coverage_2sigma,
-        "coverage_3sigma" => row.coverage_3sigma,
-        _ => f64::NAN,
-    }
+/// For each hit of a scan (its measured points): the error `truth −
+/// propagated mean` and the propagated covariance, for consistency checks
+/// against the simulator.
+fn errors_against_truth(
+    truth: &ScanTruth,
+    points: &[Option<UncertainPoint>],
+    propagator: &dyn Propagator,
+) -> Vec<(Vector3, Matrix3)> {
+    points
+        .iter()
+        .zip(&truth.beams)
+        .filter_map(|(point, t)| {
+            let g = propagator.propagate(point.as_ref()?);
+            Some((t.point.coords - g.mean, g.covariance))
+        })
+        .collect()
 }
 
 /// One row of `summary.csv`: a method's mean and 95% interval of a metric
@@ -269,10 +176,13 @@ pub fn summarise(rows: &[RunRow], cells: &[String], methods: &[Method]) -> Vec<S
             .iter()
             .filter(|r| &r.cell == cell && r.method == method.as_str())
             .collect();
-        for name in SUMMARY_METRICS {
+        for (index, metric) in METRICS.iter().enumerate() {
+            if !metric.summarised() {
+                continue;
+            }
             let values: Vec<f64> = mine
                 .iter()
-                .map(|r| metric(r, name))
+                .map(|r| r.values[index])
                 .filter(|v| v.is_finite())
                 .collect();
             let n = values.len();
@@ -286,7 +196,7 @@ pub fn summarise(rows: &[RunRow], cells: &[String], methods: &[Method]) -> Vec<S
             out.push(SummaryRow {
                 cell: cell.clone(),
                 method: method.as_str().into(),
-                metric: name.into(),
+                metric: metric.name.into(),
                 n,
                 mean,
                 ci95_low: mean - half,

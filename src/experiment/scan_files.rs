@@ -2,10 +2,11 @@
 //! with the sensor origin, and the nominal chain in `sigmap propagate` format;
 //! the truth in a separate folder for scoring.
 
+use super::model::{ray_inputs, MapperView};
 use super::{Experiment, SimulatedRun};
 use crate::error::{Error, Result};
 use crate::geometry::{Isometry3, Matrix6, Pose};
-use crate::sim::scan::{BeamStatus, Scan};
+use crate::sim::scan::{BeamStatus, Scan, ScanTruth};
 use crate::uncertainty::UncertainPose;
 use std::fmt::Write as _;
 use std::io::Write;
@@ -167,8 +168,8 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
     summary
         .write_record(&header)
         .map_err(|e| Error::io(&summary_path, e.into()))?;
-    for scan in &run.scans {
-        write_viewpoint(dir, &truth_dir, scanner, scan)?;
+    for (scan, truth) in run.scans.iter().zip(&run.truth.scans) {
+        write_viewpoint(dir, &truth_dir, scanner, scan, truth)?;
         let count = |s: BeamStatus| {
             scan.measurements
                 .iter()
@@ -202,6 +203,7 @@ fn write_viewpoint(
     truth_dir: &Path,
     scanner: &crate::sim::sensor::Scanner,
     scan: &Scan,
+    scan_truth: &ScanTruth,
 ) -> Result<()> {
     let stem = format!("vp_{:03}", scan.viewpoint);
     put(&dir.join(format!("{stem}.chain.toml")), &chain_file(scan))?;
@@ -259,7 +261,7 @@ fn write_viewpoint(
     let mut truth = create(&truth_path)?;
     writeln!(truth, "beam,true_range,true_x,true_y,true_z,object")
         .map_err(|e| Error::io(&truth_path, e))?;
-    for (i, t) in scan.truth.beams.iter().enumerate() {
+    for (i, t) in scan_truth.beams.iter().enumerate() {
         line.clear();
         if t.range.is_nan() {
             let _ = writeln!(line, "{i},,,,,");
@@ -342,4 +344,30 @@ pub fn default_scan_dir(experiment: &Experiment) -> PathBuf {
     PathBuf::from("results")
         .join(&experiment.name)
         .join("scans")
+}
+
+/// The rays OctoMap's `insertPointCloud` gets: per scan, the origin and the
+/// end points (no-return beams as points at twice the maximum range, which
+/// OctoMap truncates to free space). Little-endian:
+/// `"SIGMAPRAYS1\n"`, `f32` max range, `u32` scans; per scan `f32` origin x y z,
+/// `u32` n, n × `f32` x y z (benches/octomap/insert.cpp reads it).
+pub fn write_rays(path: &Path, view: &MapperView, scans: &[Scan]) -> Result<()> {
+    let mut out = b"SIGMAPRAYS1\n".to_vec();
+    let max_range = view.scanner.max_range;
+    out.extend_from_slice(&(max_range as f32).to_le_bytes());
+    out.extend_from_slice(&(scans.len() as u32).to_le_bytes());
+    for scan in scans {
+        let (origin, hits, misses) = ray_inputs(view, scan);
+        for v in origin.iter() {
+            out.extend_from_slice(&(*v as f32).to_le_bytes());
+        }
+        out.extend_from_slice(&((hits.len() + misses.len()) as u32).to_le_bytes());
+        let far = misses.iter().map(|d| origin + d * (2.0 * max_range));
+        for p in hits.iter().copied().chain(far) {
+            for v in p.iter() {
+                out.extend_from_slice(&(*v as f32).to_le_bytes());
+            }
+        }
+    }
+    crate::files::write_file(path, &out)
 }

@@ -8,7 +8,8 @@ use crate::sim::streams::{Stream, Streams};
 use crate::sim::truth::{draw_arm, draw_pose};
 use crate::uncertainty::UncertainPose;
 
-/// The run-level truth (drawn once per run).
+/// The truth of a run, for scoring only: the draws of the run and of each
+/// viewpoint, and what really happened to every beam.
 #[derive(Clone, Debug)]
 pub struct RunTruth {
     /// The true `world_from_scene`.
@@ -17,6 +18,8 @@ pub struct RunTruth {
     pub robot_from_camera: Isometry3,
     /// The true `world_from_robot` of each viewpoint.
     pub world_from_robot: Vec<Isometry3>,
+    /// The truth behind each scan, in the order of `SimulatedRun::scans`.
+    pub scans: Vec<ScanTruth>,
 }
 
 /// Everything one run produced.
@@ -24,9 +27,9 @@ pub struct RunTruth {
 pub struct SimulatedRun {
     /// The seed of the run.
     pub seed: u64,
-    /// One scan per viewpoint.
+    /// One scan per viewpoint: what a mapper may see.
     pub scans: Vec<Scan>,
-    /// Scoring only.
+    /// Scoring only; never given to map building.
     pub truth: RunTruth,
 }
 
@@ -52,6 +55,7 @@ pub fn simulate(
     let true_robot_from_camera = draw_pose(&robot_from_camera, &mut run_rng).to_isometry();
     let mut scans = Vec::with_capacity(experiment.viewpoints.len());
     let mut true_arm = Vec::with_capacity(experiment.viewpoints.len());
+    let mut true_scans = Vec::with_capacity(experiment.viewpoints.len());
     for (index, viewpoint) in experiment.viewpoints.iter().enumerate() {
         let mut rng = streams.rng(Stream::Viewpoint(index as u32));
         let arm = draw_arm(
@@ -86,10 +90,10 @@ pub fn simulate(
                 robot_from_camera,
             },
             measurements,
-            truth: ScanTruth {
-                scene_from_camera,
-                beams,
-            },
+        });
+        true_scans.push(ScanTruth {
+            scene_from_camera,
+            beams,
         });
         true_arm.push(arm.truth);
         progress(index + 1);
@@ -101,6 +105,7 @@ pub fn simulate(
             world_from_scene: true_world_from_scene,
             robot_from_camera: true_robot_from_camera,
             world_from_robot: true_arm,
+            scans: true_scans,
         },
     })
 }

@@ -8,8 +8,10 @@ pub mod octree;
 pub mod opdf;
 pub mod pooling;
 pub mod ray_update;
+pub mod settings;
 pub mod shared_motion;
 pub mod spherical;
 pub mod viewpoint;
 
 pub use octree::{Clamp, Key, Leaf, Octree, TreeStats};
+pub use settings::MapSettings;

@@ -152,15 +152,52 @@ impl CellSet {
     }
 }
 
+/// OctoMap's per-scan cell update: `hit` (log-odds) where a beam ended,
+/// `miss` where it passed (OctoMap's `setProbHit` / `setProbMiss`), then the
+/// map-level `clamp` (`setClampingThresMin` / `Max`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UpdateRule {
+    /// Added to the end cell of a returning beam (OctoMap: `logodds(0.7)`).
+    pub hit: f32,
+    /// Added to every cell a beam traverses (OctoMap: `logodds(0.4)`).
+    pub miss: f32,
+    /// The bounds every update is clamped to.
+    pub clamp: Clamp,
+}
+
+impl UpdateRule {
+    /// OctoMap's defaults, bit-exact.
+    pub const OCTOMAP: UpdateRule = UpdateRule {
+        hit: LOG_ODDS_HIT,
+        miss: LOG_ODDS_MISS,
+        clamp: Clamp::OCTOMAP,
+    };
+}
+
+impl Default for UpdateRule {
+    fn default() -> Self {
+        Self::OCTOMAP
+    }
+}
+
 /// Reusable buffers of the ray update (no allocation per scan once warm).
 #[derive(Default)]
 pub struct RayUpdater {
+    rule: UpdateRule,
     free: CellSet,
     occupied: CellSet,
     ends: Vec<(Point3, bool)>,
 }
 
 impl RayUpdater {
+    /// An updater applying `rule` ([`RayUpdater::default`]: OctoMap's).
+    pub fn new(rule: UpdateRule) -> Self {
+        Self {
+            rule,
+            ..Self::default()
+        }
+    }
+
     /// Inserts one scan: `hits` are measured end points; `misses` are the
     /// directions (unit) of beams that returned nothing, which carve free
     /// space up to `max_range`. Hits farther than `max_range` are truncated
@@ -234,9 +271,10 @@ impl RayUpdater {
             .codes
             .retain(|c| !occupied.contains(&Key::from_morton(*c)));
         self.free.codes.sort_unstable();
-        tree.update_sorted(&self.free.codes, LOG_ODDS_MISS, Clamp::OCTOMAP);
+        let rule = self.rule;
+        tree.update_sorted(&self.free.codes, rule.miss, rule.clamp);
         self.occupied.codes.sort_unstable();
-        tree.update_sorted(&self.occupied.codes, LOG_ODDS_HIT, Clamp::OCTOMAP);
+        tree.update_sorted(&self.occupied.codes, rule.hit, rule.clamp);
     }
 }
 
@@ -301,5 +339,28 @@ mod tests {
         // The no-return beam carves up to max range only.
         assert_eq!(at(0.05, 0.95), Some(LOG_ODDS_MISS));
         assert_eq!(at(0.05, 1.15), None);
+    }
+
+    #[test]
+    fn a_custom_rule_sets_the_steps_and_the_clamp() {
+        let rule = UpdateRule {
+            hit: 0.25,
+            miss: -0.125,
+            clamp: Clamp {
+                min: -0.2,
+                max: 0.375,
+            },
+        };
+        let mut tree = Octree::new(0.1);
+        let origin = Point3::new(0.05, 0.05, 0.05);
+        let hits = [Point3::new(0.55, 0.05, 0.05)];
+        let mut updater = RayUpdater::new(rule);
+        let at = |tree: &Octree, x: f64| tree.value_at(&Point3::new(x, 0.05, 0.05));
+        updater.insert_scan(&mut tree, &origin, &hits, &[], 1.0);
+        assert_eq!(at(&tree, 0.25), Some(-0.125));
+        assert_eq!(at(&tree, 0.55), Some(0.25));
+        updater.insert_scan(&mut tree, &origin, &hits, &[], 1.0);
+        assert_eq!(at(&tree, 0.25), Some(-0.2), "clamped below");
+        assert_eq!(at(&tree, 0.55), Some(0.375), "clamped above");
     }
 }

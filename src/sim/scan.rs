@@ -87,7 +87,8 @@ pub struct ScanTruth {
     pub beams: Vec<BeamTruth>,
 }
 
-/// One viewpoint's scan: what the modeller sees, plus the truth.
+/// One viewpoint's scan: all a mapper may see of it. The truth behind it
+/// is a separate [`ScanTruth`], which map building never receives.
 #[derive(Clone, Debug)]
 pub struct Scan {
     /// Viewpoint index within the experiment.
@@ -98,8 +99,6 @@ pub struct Scan {
     pub chain: NominalChain,
     /// One measurement per beam of the scanner, in its order.
     pub measurements: Vec<Measurement>,
-    /// Not for the modeller.
-    pub truth: ScanTruth,
 }
 
 /// Rotates the unit vector `d` by the small angles `(a, b)` about two axes

@@ -1,0 +1,418 @@
+//! Batch runs of an experiment: every (sweep cell, seed) run, resumable from
+//! a journal, sharded across machines and merged back. A results folder holds
+//! `runs.csv`, `timings.csv`, `summary.csv`, the charts, the first run's maps
+//! and `run.toml`, the manifest that ties it to its inputs (a resume or a
+//! merge never reuses results of other inputs; docs/architecture.md).
+
+use super::journal::{fingerprint, journal_record, read_journal, Inputs, Wanted};
+use super::model::Method;
+use super::plots;
+use super::runner::{
+    ground_truth, read_rows, run_seed, summarise, write_rows, RunRow, SummaryRow, TimingRow,
+};
+use super::Experiment;
+use crate::error::{Error, Result};
+use crate::mapping::octomap_io::write_octree;
+use rayon::prelude::*;
+use std::collections::BTreeSet;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// How `sigmap run` runs an experiment.
+#[derive(Clone, Debug, Default)]
+pub struct RunOptions {
+    /// The results folder [default: `results/<name>`].
+    pub out: Option<PathBuf>,
+    /// Redo every run, discarding the folder's earlier results.
+    pub fresh: bool,
+    /// Run only shard `i` of `n` (1-based); `None`: all runs.
+    pub shard: Option<(usize, usize)>,
+}
+
+/// What a finished batch run produced.
+pub struct RunOutcome {
+    /// The experiment (its base cell).
+    pub experiment: Experiment,
+    /// The results folder.
+    pub out: PathBuf,
+    /// The rows of `summary.csv`.
+    pub summary: Vec<SummaryRow>,
+    /// Runs (rows of `runs.csv`) in the folder.
+    pub runs: usize,
+}
+
+/// The results folder of `experiment` unless one is given.
+pub fn results_dir(experiment: &Experiment, out: Option<&Path>) -> PathBuf {
+    out.map_or_else(
+        || PathBuf::from("results").join(&experiment.name),
+        Path::to_path_buf,
+    )
+}
+
+/// Runs every (cell, seed) of the experiment file at `path` that the folder
+/// does not hold yet (or every one of shard `i/n`), in parallel on the
+/// current rayon pool, and writes the folder's files. `pending(n)` is called
+/// once with the number of runs to do, `finished()` after each.
+pub fn run_experiment(
+    path: &Path,
+    options: &RunOptions,
+    pending_runs: impl FnOnce(usize),
+    finished: impl Fn() + Sync,
+) -> Result<RunOutcome> {
+    let experiment = Experiment::load(path)?;
+    // Every cell is loaded (and so checked) before any run starts.
+    let cells: Vec<Experiment> = experiment
+        .cells()
+        .iter()
+        .map(|cell| Experiment::load_cell(path, cell))
+        .collect::<Result<_>>()?;
+    let labels: Vec<String> = cells
+        .iter()
+        .map(|c| Experiment::cell_label(&c.cell))
+        .collect();
+    let out = results_dir(&experiment, options.out.as_deref());
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let _lock = crate::files::RunLock::acquire(&out)?;
+    let runs_path = out.join("runs.csv");
+    let journal_path = out.join("runs.journal.csv");
+    let timings_path = out.join("timings.csv");
+    let inputs = fingerprint(&cells)?;
+    let (shard, shards) = options.shard.unwrap_or((1, 1));
+    let manifest_path = out.join("run.toml");
+    if options.fresh {
+        for p in [&runs_path, &journal_path, &timings_path] {
+            if p.exists() {
+                std::fs::remove_file(p).map_err(|e| Error::io(p, e))?;
+            }
+        }
+    } else if manifest_path.exists() {
+        // Never resume from results of other inputs.
+        let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
+        let same_shard = manifest.shard == format!("{shard}/{shards}");
+        let version = env!("CARGO_PKG_VERSION");
+        let what = if manifest.version != version {
+            Some(format!(
+                "sigmap {} wrote them, this is {version}",
+                manifest.version
+            ))
+        } else if !same_shard {
+            Some(format!(
+                "they are shard {}, not {shard}/{shards}",
+                manifest.shard
+            ))
+        } else if manifest.fingerprint != inputs.fingerprint {
+            let recorded: Vec<(String, String)> = manifest.inputs.into_iter().collect();
+            let changed = inputs.changed_since(&recorded);
+            Some(if changed.is_empty() {
+                "the sweep cells changed".to_string()
+            } else {
+                format!("changed since: {}", changed.join(", "))
+            })
+        } else {
+            None
+        };
+        if let Some(what) = what {
+            return Err(Error::input(
+                &manifest_path,
+                format!(
+                    "this folder holds results of other inputs ({what}); rerun with --fresh to \
+                     replace them, or choose another --out"
+                ),
+            ));
+        }
+    }
+    // Finished runs: the sorted file and the journal of an interrupted run.
+    // A run counts only with a row for every method; rows of runs, methods or
+    // cells the experiment does not have are dropped, and so are repeats.
+    let wanted = Wanted {
+        cells: &labels,
+        seeds: &experiment.seeds,
+        methods: &experiment.methods,
+    };
+    let mut rows: Vec<RunRow> = read_rows(&runs_path)?;
+    let (journal_rows, journal_timings) = read_journal(&journal_path)?;
+    rows.extend(journal_rows);
+    wanted.keep(&mut rows);
+    let done = wanted.complete(&rows);
+    rows.retain(|r| done.contains(&(r.cell.clone(), r.seed)));
+    let mut timings: Vec<TimingRow> = read_rows(&timings_path)?;
+    timings.extend(journal_timings);
+    wanted.keep(&mut timings);
+    timings.retain(|t| done.contains(&(t.cell.clone(), t.seed)));
+    let mine = shard_runs(cells.len(), &experiment.seeds, shard, shards);
+    let pending: Vec<(usize, u64)> = mine
+        .iter()
+        .copied()
+        .filter(|(c, s)| !done.contains(&(labels[*c].clone(), *s)))
+        .collect();
+    write_manifest(&out, &experiment, &inputs, shard, shards)?;
+    pending_runs(pending.len());
+    let journal = Mutex::new(
+        std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&journal_path)
+            .map_err(|e| Error::io(&journal_path, e))?,
+    );
+    let first_seed = experiment.seeds[0];
+    let results = {
+        pending
+            .par_iter()
+            .map(|&(c, seed)| -> Result<(Vec<RunRow>, Vec<TimingRow>)> {
+                let truth = ground_truth(&cells[c], seed);
+                let (new_rows, new_timings, maps) = run_seed(&cells[c], &truth, seed)?;
+                if c == 0 && seed == first_seed {
+                    for (method, map) in experiment.methods.iter().zip(&maps) {
+                        let path = out.join(format!("map_{method}.bt"));
+                        write_octree(&path, map, cells[0].map.clamp())?;
+                    }
+                    let offset = cells[0].map_offset(seed);
+                    let workspace = &cells[0].scene.workspace;
+                    let workspace = crate::sim::scene::Bounds {
+                        min: workspace.min + offset,
+                        max: workspace.max + offset,
+                    };
+                    let pairs: Vec<_> = experiment
+                        .methods
+                        .iter()
+                        .copied()
+                        .zip(maps.iter())
+                        .collect();
+                    plots::plot_slice(
+                        &out.join("slice.svg"),
+                        &truth,
+                        &pairs,
+                        &workspace,
+                        plots::slice_height(&truth),
+                    )?;
+                }
+                // One record per finished run, so an interruption loses only
+                // unfinished runs; a record cut short is ignored when read.
+                let text = journal_record(&new_rows, &new_timings)?;
+                let mut file = journal
+                    .lock()
+                    .map_err(|_| Error::CheckFailed("journal lock poisoned".into()))?;
+                file.write_all(&text)
+                    .and_then(|_| file.sync_data())
+                    .map_err(|e| Error::io(&journal_path, e))?;
+                finished();
+                Ok((new_rows, new_timings))
+            })
+            .collect::<Vec<_>>()
+    };
+    for result in results {
+        let (r, t) = result?;
+        rows.extend(r);
+        timings.extend(t);
+    }
+    let runs = rows.len();
+    let summary = finalize(&out, &experiment, &labels, rows, timings)?;
+    std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
+    Ok(RunOutcome {
+        experiment,
+        out,
+        summary,
+        runs,
+    })
+}
+
+/// The runs of shard `shard` of `shards` (1-based): every n-th (cell index,
+/// seed) of the fixed list, cells outer. The same experiment always gives the
+/// same shards.
+pub fn shard_runs(cells: usize, seeds: &[u64], shard: usize, shards: usize) -> Vec<(usize, u64)> {
+    (0..cells)
+        .flat_map(|c| seeds.iter().map(move |&s| (c, s)))
+        .enumerate()
+        .filter(|(k, _)| k % shards == shard - 1)
+        .map(|(_, run)| run)
+        .collect()
+}
+
+/// The finished runs (cell label, seed) recorded in a run folder: its
+/// runs.csv and the whole records of the journal of an interrupted run. A
+/// run is finished when it has a row for every method it is `wanted` with.
+pub fn finished_runs(dir: &Path, wanted: &Wanted) -> Result<BTreeSet<(String, u64)>> {
+    let mut rows: Vec<RunRow> = read_rows(&dir.join("runs.csv"))?;
+    rows.extend(read_journal(&dir.join("runs.journal.csv"))?.0);
+    wanted.keep(&mut rows);
+    Ok(wanted.complete(&rows))
+}
+
+/// Sorts the rows into the one order every machine agrees on (cell, seed,
+/// method as the experiment lists them), writes runs.csv, timings.csv,
+/// summary.csv and the summary's charts, and returns the summary.
+fn finalize(
+    out: &Path,
+    experiment: &Experiment,
+    labels: &[String],
+    mut rows: Vec<RunRow>,
+    mut timings: Vec<TimingRow>,
+) -> Result<Vec<SummaryRow>> {
+    let methods: &[Method] = &experiment.methods;
+    let method_order = |m: &str| {
+        methods
+            .iter()
+            .position(|x| x.as_str() == m)
+            .unwrap_or(usize::MAX)
+    };
+    let cell_order = |c: &str| labels.iter().position(|x| x == c).unwrap_or(usize::MAX);
+    rows.retain(|r| cell_order(&r.cell) != usize::MAX && method_order(&r.method) != usize::MAX);
+    rows.sort_by_key(|r| (cell_order(&r.cell), r.seed, method_order(&r.method)));
+    rows.dedup_by(|a, b| a.cell == b.cell && a.seed == b.seed && a.method == b.method);
+    timings.sort_by_key(|r| (cell_order(&r.cell), r.seed, method_order(&r.method)));
+    timings.dedup_by(|a, b| a.cell == b.cell && a.seed == b.seed && a.method == b.method);
+    write_rows(&out.join("runs.csv"), &rows)?;
+    write_rows(&out.join("timings.csv"), &timings)?;
+    let summary = summarise(&rows, labels, methods);
+    write_rows(&out.join("summary.csv"), &summary)?;
+    plots::plot_scores(
+        &out.join("scores.svg"),
+        &summary,
+        &experiment.cells(),
+        methods,
+    )?;
+    plots::plot_coverage(&out.join("coverage.svg"), &summary, &labels[0], methods)?;
+    plots::plot_safety(
+        &out.join("safety.svg"),
+        &summary,
+        &experiment.cells(),
+        methods,
+    )?;
+    Ok(summary)
+}
+
+/// `run.toml`: which experiment, inputs, version and shard produced a folder.
+fn write_manifest(
+    out: &Path,
+    experiment: &Experiment,
+    inputs: &Inputs,
+    shard: usize,
+    shards: usize,
+) -> Result<()> {
+    let mut text = format!(
+        "# written by sigmap run; `sigmap run` and `sigmap merge` check it\nexperiment = {}\nfingerprint = \"{}\"\nversion = \"{}\"\nshard = \"{shard}/{shards}\"\n\n[inputs]\n",
+        toml::Value::String(experiment.name.clone()),
+        inputs.fingerprint,
+        env!("CARGO_PKG_VERSION")
+    );
+    for (path, hash) in &inputs.files {
+        text.push_str(&format!(
+            "{} = \"{hash}\"\n",
+            toml::Value::String(path.clone())
+        ));
+    }
+    crate::files::write_file(&out.join("run.toml"), text.as_bytes())
+}
+
+#[derive(serde::Deserialize)]
+struct Manifest {
+    experiment: String,
+    fingerprint: String,
+    #[serde(default)]
+    inputs: std::collections::BTreeMap<String, String>,
+    version: String,
+    shard: String,
+}
+
+/// Joins the folders of `sigmap run --shard i/n` of the experiment file at
+/// `path` into `out` [default: `results/<name>`], checking that every shard
+/// ran the same inputs with this version and that no run is missing; the
+/// merged files are byte-identical to a one-machine run. Returns the folder.
+pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Result<PathBuf> {
+    let experiment = Experiment::load(path)?;
+    let labels: Vec<String> = experiment
+        .cells()
+        .iter()
+        .map(|c| Experiment::cell_label(c))
+        .collect();
+    let cells: Vec<Experiment> = experiment
+        .cells()
+        .iter()
+        .map(|cell| Experiment::load_cell(path, cell))
+        .collect::<Result<_>>()?;
+    let expected = fingerprint(&cells)?;
+    let (mut rows, mut timings) = (Vec::new(), Vec::new());
+    for dir in shards {
+        let manifest_path = dir.join("run.toml");
+        let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
+        if manifest.experiment != experiment.name || manifest.fingerprint != expected.fingerprint {
+            return Err(Error::input(
+                &manifest_path,
+                format!(
+                    "this shard ran experiment '{}' with other inputs (fingerprint {} vs {}); merge only shards of {}",
+                    manifest.experiment,
+                    manifest.fingerprint,
+                    expected.fingerprint,
+                    path.display()
+                ),
+            ));
+        }
+        if manifest.version != env!("CARGO_PKG_VERSION") {
+            return Err(Error::input(
+                &manifest_path,
+                format!(
+                    "shard {} was written by sigmap {}, this is {}",
+                    manifest.shard,
+                    manifest.version,
+                    env!("CARGO_PKG_VERSION")
+                ),
+            ));
+        }
+        rows.extend(read_rows::<RunRow>(&dir.join("runs.csv"))?);
+        timings.extend(read_rows::<TimingRow>(&dir.join("timings.csv"))?);
+        let (journal_rows, journal_timings) = read_journal(&dir.join("runs.journal.csv"))?;
+        rows.extend(journal_rows);
+        timings.extend(journal_timings);
+    }
+    // Only this experiment's runs, each once (a run in two shards, or in a
+    // shard's runs.csv and its journal, counts once).
+    let wanted = Wanted {
+        cells: &labels,
+        seeds: &experiment.seeds,
+        methods: &experiment.methods,
+    };
+    wanted.keep(&mut rows);
+    wanted.keep(&mut timings);
+    let have: BTreeSet<(String, u64, String)> = rows
+        .iter()
+        .map(|r| (r.cell.clone(), r.seed, r.method.clone()))
+        .collect();
+    let missing: Vec<String> = labels
+        .iter()
+        .flat_map(|c| {
+            let methods = &experiment.methods;
+            experiment
+                .seeds
+                .iter()
+                .flat_map(move |s| methods.iter().map(move |m| (c, *s, *m)))
+        })
+        .filter(|(c, s, m)| !have.contains(&((*c).clone(), *s, m.as_str().to_string())))
+        .map(|(c, s, m)| format!("cell '{c}' seed {s} {m}"))
+        .collect();
+    if !missing.is_empty() {
+        return Err(Error::Usage(format!(
+            "{} runs are missing from the shards (first: {}); finish them with `sigmap run ... --shard i/n`",
+            missing.len(),
+            missing[0]
+        )));
+    }
+    let out = results_dir(&experiment, out);
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    finalize(&out, &experiment, &labels, rows, timings)?;
+    write_manifest(&out, &experiment, &expected, 1, 1)?;
+    // The first run's maps and slice live in the shard that ran it.
+    for dir in shards {
+        for entry in std::fs::read_dir(dir)
+            .map_err(|e| Error::io(dir, e))?
+            .flatten()
+        {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if name == "slice.svg" || (name.starts_with("map_") && name.ends_with(".bt")) {
+                std::fs::copy(entry.path(), out.join(&name))
+                    .map_err(|e| Error::io(entry.path(), e))?;
+            }
+        }
+    }
+    Ok(out)
+}
