@@ -12,9 +12,11 @@
 //! error profiles, truth draw), [`mapping`] (local grids, the cell model, the
 //! octree, OctoMap's update and files; it never sees the truth), [`eval`]
 //! (ground truth, observable mask, scores), [`experiment`] (configuration,
-//! runs, journals, summaries, charts), [`plot`] (SVG charts), [`files`]
+//! map building behind a truth-free view, the metrics table, batch runs with
+//! resume, shards, SLURM, summaries, charts), [`plot`] (SVG charts), [`files`]
 //! (staged output that never deletes what sigmap did not write), [`error`]
-//! (one-line errors and exit codes), [`cli`] (the `sigmap` command).
+//! (one-line errors and exit codes), [`cli`] (the `sigmap` command: thin
+//! adapters over the library).
 
 pub mod cli;
 pub mod error;

@@ -404,3 +404,91 @@ fn a_resume_refuses_results_of_other_inputs() {
         assert!(call(&["--fresh"]).status.success());
     }
 }
+
+#[test]
+fn octomap_settings_are_swept_from_the_experiment_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = portable_quickstart()
+        .replace("seeds = [1, 2, 3]", "seeds = [2]")
+        .replace(
+            "methods = [\"blind\", \"unscented\", \"ray_update\"]",
+            "methods = [\"unscented\", \"ray_update\"]",
+        );
+    let plain = dir.path().join("plain.toml");
+    std::fs::write(&plain, &base).unwrap();
+    // OctoMap's own values, written out, then swept: a stricter hit and a
+    // tighter upper clamp.
+    let swept_text = base.replacen(
+        "[robot]",
+        "[map]\nprob_hit = 0.7\nclamp_max = 0.971\n\n\
+         [[sweep]]\nfield = \"experiment.map.prob_hit\"\nvalues = [0.7, 0.55]\n\n[robot]",
+        1,
+    );
+    let sweep = dir.path().join("sweep.toml");
+    std::fs::write(&sweep, &swept_text).unwrap();
+    let rows = |file: &std::path::Path, out: &str| -> Vec<RunRow> {
+        let out = dir.path().join(out);
+        sigmap_ok(&[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+        ]);
+        csv::Reader::from_path(out.join("runs.csv"))
+            .unwrap()
+            .deserialize()
+            .map(|r| r.unwrap())
+            .collect()
+    };
+    let plain = rows(&plain, "plain");
+    let swept = rows(&sweep, "swept");
+    assert_eq!(swept.len(), 4);
+    let strip = |r: &RunRow| {
+        format!(
+            "{:?}",
+            RunRow {
+                cell: String::new(),
+                ..r.clone()
+            }
+        )
+    };
+    // OctoMap's defaults given explicitly: the same maps bit for bit.
+    assert_eq!(swept[0].cell, "experiment.map.prob_hit=0.7");
+    assert_eq!(strip(&swept[0]), strip(&plain[0]));
+    assert_eq!(strip(&swept[1]), strip(&plain[1]));
+    // A weaker hit (0.55: +0.2 log-odds, below one miss) changes the ray
+    // update only: surface cells crossed by other beams turn free.
+    assert_eq!(swept[2].cell, "experiment.map.prob_hit=0.55");
+    assert_eq!(
+        strip(&swept[2]),
+        strip(&plain[0]),
+        "the OPDF merge ignores it"
+    );
+    assert_eq!(swept[3].method, "ray_update");
+    assert!(
+        swept[3].get("false_free_rate") > plain[1].get("false_free_rate") + 0.02,
+        "{} vs {}",
+        swept[3].get("false_free_rate"),
+        plain[1].get("false_free_rate")
+    );
+    // Out of range: refused before any run, naming the setting.
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        swept_text.replace("values = [0.7, 0.55]", "values = [0.7, 0.3]"),
+    )
+    .unwrap();
+    let out = sigmap(&[
+        "run",
+        bad.to_str().unwrap(),
+        "--out",
+        dir.path().join("b").to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("bad.toml") && stderr.contains("map.prob_hit = 0.3"),
+        "{stderr}"
+    );
+}

@@ -2,7 +2,7 @@
 
 use super::GroundTruthArgs;
 use crate::error::{Error, Result};
-use crate::eval::ground_truth::{cell_counts, voxelise};
+use crate::eval::ground_truth::{cell_counts, check_resolution, voxelise};
 use crate::mapping::octomap_io::write_octree;
 use crate::mapping::Clamp;
 use crate::sim::scene::Scene;
@@ -25,10 +25,7 @@ pub(crate) fn run(args: GroundTruthArgs) -> Result<()> {
         ));
     }
     let scene = Scene::load(&args.scene)?;
-    crate::mapping::octree::check_span(scene.workspace.reach(), args.resolution)
-        .map_err(|e| Error::input(&args.scene, e))?;
-    crate::mapping::octree::check_cells(scene.workspace.extent(), args.resolution)
-        .map_err(|e| Error::input(&args.scene, e))?;
+    check_resolution(&scene, args.resolution)?;
     let start = Instant::now();
     let truth = voxelise(&scene, args.resolution);
     let seconds = start.elapsed().as_secs_f64();

@@ -1,5 +1,9 @@
-//! The command line: argument parsing, progress, and exit codes
-//! (0 ok, 1 a failed check, 2 bad input or usage).
+//! The `sigmap` command line: one clap adapter per command, each in its own
+//! file (`run.rs` also holds `merge`, `cluster.rs` `submit` and `status`).
+//! An adapter parses arguments, calls the library (`experiment`, `mapping`,
+//! `eval`, `uncertainty`), draws the progress bar and prints; it holds no
+//! logic of its own. Exit codes: 0 ok, 1 a failed check, 2 bad input or
+//! usage (`error`).
 
 mod cluster;
 mod ground_truth;

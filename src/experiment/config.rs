@@ -355,10 +355,7 @@ impl Experiment {
                 scanner.directions.len()
             )));
         }
-        crate::mapping::octree::check_span(scene.workspace.reach(), file.resolution)
-            .map_err(|e| Error::input(&scene.source, e))?;
-        crate::mapping::octree::check_cells(scene.workspace.extent(), file.resolution)
-            .map_err(|e| Error::input(&scene.source, e))?;
+        crate::eval::ground_truth::check_resolution(&scene, file.resolution)?;
         let mut experiment = Self {
             name: file.name.unwrap_or_else(|| crate::sim::scene::stem(path)),
             description: file.description,

@@ -1,5 +1,5 @@
 //! The paper's figures as files: the occupancy profile along a beam
-//! (Payeur's figures 1 and 6; docs/math.md §4.1, §4.3) and the comparison of
+//! (Payeur's figures 1 and 6; docs/math.md §4.3–4.4) and the comparison of
 //! the propagators against Monte Carlo over rotation sigmas.
 
 use crate::error::{Error, Result};

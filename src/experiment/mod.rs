@@ -1,4 +1,27 @@
-//! Experiments: the configuration schema, the simulated runs, and their files.
+//! Experiments: from an experiment file to scored runs and their files.
+//!
+//! Owns the experiment file and its sweeps ([`Experiment`], `config`), one
+//! simulated run ([`simulate`]: the truth draw and a scan per viewpoint),
+//! map building with each method ([`model`]; it takes a
+//! [`model::MapperView`] and the scans, never the truth), one scored run
+//! ([`runner`]), the metrics table ([`metrics`]), batch runs with resume,
+//! shards and merge ([`batch`], [`journal`]), SLURM submission ([`cluster`]),
+//! the regression gate ([`regress`]), scan files, and charts ([`plots`],
+//! [`figures`]). Each `sigmap` command is a thin adapter over one of these.
+//!
+//! ```no_run
+//! use sigmap::experiment::model::{build_map, MapperView, Method};
+//! use sigmap::experiment::{runner, simulate, Experiment};
+//! let experiment = Experiment::load("experiments/quickstart.toml".as_ref())?;
+//! let run = simulate(&experiment, 1, |_viewpoints_done| {})?;
+//! let view = MapperView::of(&experiment);
+//! let map = build_map(&view, &run.scans, Method::Unscented, 0.01, &experiment.map_offset(1))?;
+//! // Or everything `sigmap run` does for one seed: every method, scored.
+//! let truth = runner::ground_truth(&experiment, 1);
+//! let (rows, _timings, _maps) = runner::run_seed(&experiment, &truth, 1)?;
+//! println!("F1 {}", rows[0].get("f1"));
+//! # Ok::<(), sigmap::Error>(())
+//! ```
 
 pub mod batch;
 pub mod cluster;

@@ -1,5 +1,25 @@
-//! Occupancy modelling: the probabilistic octree, its OctoMap files, and the
-//! two ways of filling it (the paper's OPDF merge and OctoMap's ray update).
+//! Occupancy modelling: everything a mapper does, and nothing it may not know.
+//!
+//! Owns the probabilistic [`Octree`] (OctoMap's keys and log-odds, its `.bt`
+//! and `.ot` files in [`octomap_io`]), the two ways of filling it — the
+//! paper's OPDF merge (a viewpoint's local spherical grid, [`viewpoint`] and
+//! [`spherical`], merged by [`merge`] with the cell model of [`chord`]; beam
+//! [`pooling`]; the [`shared_motion`] step for correlated errors) and
+//! OctoMap's ray update ([`ray_update`]) — and the [`MapSettings`] both are
+//! built with. It never imports `sim`, `eval` or `experiment`: the truth
+//! cannot reach it (docs/architecture.md).
+//!
+//! ```
+//! use sigmap::geometry::{Point3, Vector3};
+//! use sigmap::mapping::ray_update::RayUpdater;
+//! use sigmap::mapping::Octree;
+//! let mut tree = Octree::new(0.05);
+//! let origin = Point3::new(0.0, 0.0, 0.5);
+//! let hits = [Point3::new(0.3, 0.0, 0.0)];
+//! RayUpdater::default().insert_scan(&mut tree, &origin, &hits, &[-Vector3::z()], 2.0);
+//! assert!(tree.value_at(&hits[0]).unwrap() > 0.0); // occupied
+//! assert!(tree.value_at(&Point3::new(0.0, 0.0, 0.2)).unwrap() < 0.0); // free
+//! ```
 
 pub mod chord;
 pub mod merge;

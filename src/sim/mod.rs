@@ -1,5 +1,14 @@
-//! The simulated workcell: scenes of meshes and primitives (parry3d), robots
-//! from URDF, the laser range scanner, error profiles and the truth draw.
+//! The simulated workcell: what the robot really does and what its sensor
+//! really returns.
+//!
+//! Owns the scene ([`scene`]: primitives and meshes in parry3d with a BVH for
+//! ray casting; [`mesh`] readers), robots from URDF ([`robot`], inverse
+//! kinematics in [`ik`]), the laser range scanner ([`sensor`]), the error
+//! profiles ([`profile`]), the truth draw ([`truth`]), beam casting
+//! ([`scan`]: a [`scan::Scan`] is what a mapper may see, a
+//! [`scan::ScanTruth`] what only scoring may) and the counter-based random
+//! streams ([`streams`]: one per run and per viewpoint, so results do not
+//! depend on threads).
 //!
 //! parry's own vector and pose types stay inside this module; the rest of
 //! sigmap speaks nalgebra.

@@ -7,6 +7,7 @@
 use super::mesh::Mesh;
 use crate::error::{read_toml_with, Error, Result};
 use crate::geometry::{Isometry3, Point3, Pose, Vector3};
+use cylinder::cast_cylinder;
 use parry3d_f64::bounding_volume::Aabb;
 use parry3d_f64::math::{Pose as ParryPose, Rotation as ParryRotation, Vector as ParryVector};
 use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy};
@@ -68,44 +69,6 @@ pub struct SceneObject {
     /// `(radius, half height)` of a cylinder, cast analytically: parry casts
     /// rays on cylinders by GJK, several times slower than the closed form.
     cylinder: Option<(f64, f64)>,
-}
-
-/// First entry of the ray `o + t d` (t in `[0, max]`) into the closed solid
-/// cylinder `x² + z² <= r²`, `|y| <= h` (parry's local cylinder frame); 0 when
-/// `o` is inside.
-fn cast_cylinder(
-    radius: f64,
-    half_height: f64,
-    o: ParryVector,
-    d: ParryVector,
-    max: f64,
-) -> Option<f64> {
-    let r2 = radius * radius;
-    let radial = |t: f64| (o.x + t * d.x).powi(2) + (o.z + t * d.z).powi(2);
-    if o.y.abs() <= half_height && radial(0.0) <= r2 {
-        return Some(0.0);
-    }
-    let mut best = f64::INFINITY;
-    let a = d.x * d.x + d.z * d.z;
-    if a > 0.0 {
-        let b = o.x * d.x + o.z * d.z;
-        let disc = b * b - a * (o.x * o.x + o.z * o.z - r2);
-        if disc >= 0.0 {
-            let t = (-b - disc.sqrt()) / a;
-            if t >= 0.0 && (o.y + t * d.y).abs() <= half_height {
-                best = t;
-            }
-        }
-    }
-    if d.y != 0.0 {
-        for cap in [-half_height, half_height] {
-            let t = (cap - o.y) / d.y;
-            if t >= 0.0 && t < best && radial(t) <= r2 {
-                best = t;
-            }
-        }
-    }
-    (best <= max).then_some(best)
 }
 
 /// A loaded scene: solids, a BVH over them, and the workspace to map.
@@ -443,5 +406,6 @@ pub(crate) fn stem(path: &Path) -> String {
         .unwrap_or_else(|| "unnamed".into())
 }
 
+mod cylinder;
 #[cfg(test)]
 mod tests;

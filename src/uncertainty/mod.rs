@@ -1,6 +1,25 @@
-//! Uncertainty over the transform chain (docs/math.md §1–3, §6): uncertain poses,
-//! the chain `T_1 ··· T_k X`, four propagators behind one trait, and the
-//! statistics that check them.
+//! Uncertainty over the transform chain (docs/math.md §1–3, §6).
+//!
+//! Owns [`UncertainPose`] (a pose with a 6×6 covariance on its parameters),
+//! [`UncertainChain`] (`X_s = T_1 ··· T_k X_c`, the paper's
+//! `T_sw⁻¹ T_rw T_cr`), the [`Propagator`] trait with one file per method
+//! ([`BlindPropagator`], [`JacobianPropagator`], [`UnscentedPropagator`],
+//! [`MonteCarloPropagator`]), the normal sampler shared with the simulator,
+//! and the consistency statistics (NEES, ANEES bands, coverage). It imports
+//! only `geometry` and `error`.
+//!
+//! ```
+//! use sigmap::geometry::Pose;
+//! use sigmap::uncertainty::{
+//!     Propagator, SigmaSet, UncertainChain, UncertainPoint, UncertainPose, UnscentedPropagator,
+//! };
+//! let pose = |x: f64, s: f64| UncertainPose::from_sigmas(Pose::new([x, 0.0, 0.0], [0.0; 3]), [s; 6]);
+//! // world_from_scene, world_from_robot, robot_from_camera
+//! let chain = UncertainChain::paper(pose(0.5, 0.001), pose(0.0, 0.002), pose(0.1, 0.001));
+//! let point = UncertainPoint { mean: [0.0, 0.0, 0.6].into(), covariance: Default::default() };
+//! let scene = UnscentedPropagator::new(&chain, SigmaSet::Paper).propagate(&point);
+//! assert!((scene.mean.x - (0.1 - 0.5)).abs() < 1e-3 && scene.covariance[(0, 0)] > 0.0);
+//! ```
 
 mod blind;
 pub mod chain;
