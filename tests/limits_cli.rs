@@ -280,3 +280,12 @@ fn regress_refuses_what_it_cannot_compare() {
     // The baseline against itself passes.
     assert!(sigmap(&["regress", b, "--baseline", b]).status.success());
 }
+
+#[test]
+fn export_refuses_a_cell_the_experiment_does_not_have() {
+    refused(
+        &["export", "experiments/quickstart.toml", "--cell", "3"],
+        "--cell 3",
+        "1 sweep cells",
+    );
+}

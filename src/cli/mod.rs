@@ -6,6 +6,7 @@
 //! usage (`error`).
 
 mod cluster;
+mod export;
 mod ground_truth;
 mod map;
 mod opdf;
@@ -43,6 +44,12 @@ enum Command {
     /// write what the modeller receives (CSV, PLY, nominal chains with
     /// covariances) and, apart, the truth.
     Simulate(SimulateArgs),
+    /// Export one run's scans for another mapper (OctoMap ScanGraph, PLY, TUM poses)
+    ///
+    /// Writes scans.graph (graph2tree, octovis), one PLY per viewpoint, the
+    /// nominal poses as a TUM trajectory and a README naming the frames; the
+    /// believed poses only, never the truth. Prints the graph2tree command.
+    Export(ExportArgs),
     /// Propagate one measurement through an uncertain chain with every method
     ///
     /// Blind, Jacobian, unscented and Monte Carlo: prints each method's
@@ -223,6 +230,20 @@ pub(crate) struct SimulateArgs {
 }
 
 #[derive(Args, Debug)]
+pub(crate) struct ExportArgs {
+    /// The experiment file (TOML).
+    experiment: PathBuf,
+    /// Sweep cell (0-based, in the order of summary.csv) [default: the base experiment].
+    #[arg(long)]
+    cell: Option<usize>,
+    /// Output folder [default: results/<experiment>/export].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    run: RunOptions,
+}
+
+#[derive(Args, Debug)]
 pub(crate) struct PropagateArgs {
     /// The chain file (TOML; see README, "Chain file").
     chain: PathBuf,
@@ -322,6 +343,7 @@ pub fn main() -> i32 {
     let result = match cli.command {
         Command::Run(args) => run::run(args),
         Command::Simulate(args) => simulate::run(args),
+        Command::Export(args) => export::run(args),
         Command::Propagate(args) => propagate::run(args),
         Command::Opdf(args) => opdf::run(args),
         Command::Map(args) => map::run(args),

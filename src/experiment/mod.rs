@@ -26,6 +26,7 @@
 pub mod batch;
 pub mod cluster;
 mod config;
+pub mod export;
 pub mod figures;
 pub mod journal;
 pub mod metrics;

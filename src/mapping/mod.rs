@@ -28,6 +28,7 @@ pub mod octree;
 pub mod opdf;
 pub mod pooling;
 pub mod ray_update;
+pub mod scan_graph;
 pub mod settings;
 pub mod shared_motion;
 pub mod spherical;

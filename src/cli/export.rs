@@ -1,0 +1,60 @@
+//! `sigmap export`: one run's scans for another mapper (`experiment::export`).
+
+use super::{progress_bar, with_threads, ExportArgs};
+use crate::error::{Error, Result};
+use crate::experiment::export::{graph2tree_command, write_export};
+use crate::experiment::model::MapperView;
+use crate::experiment::{self, Experiment};
+use std::path::PathBuf;
+
+/// `sigmap export`.
+pub(crate) fn run(args: ExportArgs) -> Result<()> {
+    let base = Experiment::load(&args.experiment)?;
+    let cells = base.cells();
+    let experiment = match args.cell {
+        None => base,
+        Some(k) if k < cells.len() => Experiment::load_cell(&args.experiment, &cells[k])?,
+        Some(k) => {
+            return Err(Error::Usage(format!(
+                "--cell {k}: the experiment has {} sweep cells (0 to {})",
+                cells.len(),
+                cells.len() - 1
+            )))
+        }
+    };
+    let seed = args.run.seed.unwrap_or(experiment.seed);
+    let out = args.out.clone().unwrap_or_else(|| {
+        PathBuf::from("results")
+            .join(&experiment.name)
+            .join("export")
+    });
+    let bar = progress_bar(experiment.viewpoints.len(), "simulating", args.run.quiet);
+    let run = with_threads(args.run.threads, || {
+        experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
+    })??;
+    bar.finish_and_clear();
+    let label = Experiment::cell_label(&experiment.cell);
+    let what = format!(
+        "experiment '{}', seed {seed}{}",
+        experiment.name,
+        if label.is_empty() {
+            String::new()
+        } else {
+            format!(", cell {label}")
+        }
+    );
+    let view = MapperView::of(&experiment);
+    write_export(&out, &view, &run.scans, experiment.resolution, &what)?;
+    if !args.run.quiet {
+        eprintln!(
+            "wrote {} scans of {what} to {} (scans.graph, vp_NNN.ply, poses.txt, README.txt)",
+            run.scans.len(),
+            out.display()
+        );
+        println!(
+            "{}",
+            graph2tree_command(&out, experiment.resolution, experiment.scanner.max_range)
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,115 @@
+//! `sigmap export`: the scans of one run for another mapper — an OctoMap
+//! ScanGraph, one PLY per viewpoint, the poses as a TUM trajectory and a
+//! README saying what the frames are. Only what a real robot would record:
+//! the measurements and the nominal (believed) poses, never the truth.
+
+use super::model::MapperView;
+use super::write_ply;
+use crate::error::{Error, Result};
+use crate::files::write_folder;
+use crate::geometry::Point3;
+use crate::mapping::scan_graph::{to_scan_graph, ScanNode};
+use crate::sim::scan::{BeamStatus, Scan};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// A no-return beam is written as a point this many maximum ranges away, so
+/// that `graph2tree -m MAX_RANGE` truncates it and clears free space up to
+/// the maximum range, as sigmap's ray update does.
+pub const NO_RETURN_REACH: f64 = 2.0;
+
+/// The graph nodes of `scans`: per scan its nominal `scene_from_camera` and
+/// its end points in the sensor frame (hits at their measured range,
+/// no-return beams at [`NO_RETURN_REACH`] maximum ranges; too-close and
+/// dropped beams left out).
+pub fn scan_nodes(view: &MapperView, scans: &[Scan]) -> Vec<ScanNode> {
+    let far = NO_RETURN_REACH * view.scanner.max_range;
+    scans
+        .iter()
+        .map(|scan| ScanNode {
+            id: scan.viewpoint as u32,
+            map_from_sensor: scan.chain.scene_from_camera(),
+            points: scan
+                .measurements
+                .iter()
+                .zip(&view.scanner.directions)
+                .filter_map(|(m, d)| match m.status {
+                    BeamStatus::Hit => Some(Point3::from(d * m.range)),
+                    BeamStatus::NoReturn => Some(Point3::from(d * far)),
+                    _ => None,
+                })
+                .collect(),
+        })
+        .collect()
+}
+
+/// The `graph2tree` command that builds OctoMap's map of an export.
+pub fn graph2tree_command(dir: &Path, resolution: f64, max_range: f64) -> String {
+    format!(
+        "graph2tree -i {} -o map.bt -res {resolution} -m {max_range}",
+        dir.join("scans.graph").display()
+    )
+}
+
+/// Writes the export of `scans` into the folder `out` (staged, then
+/// renamed): `scans.graph`, `vp_NNN.ply`, `poses.txt`, `README.txt`.
+/// `what` names the experiment, seed and cell for the README.
+pub fn write_export(
+    out: &Path,
+    view: &MapperView,
+    scans: &[Scan],
+    resolution: f64,
+    what: &str,
+) -> Result<()> {
+    let nodes = scan_nodes(view, scans);
+    write_folder(out, |dir| {
+        let graph = dir.join("scans.graph");
+        std::fs::write(&graph, to_scan_graph(&nodes)).map_err(|e| Error::io(&graph, e))?;
+        let mut poses = String::from("# timestamp tx ty tz qx qy qz qw (TUM): scene_from_sensor per viewpoint; timestamp = viewpoint index\n");
+        for node in &nodes {
+            let t = node.map_from_sensor.translation.vector;
+            let q = node.map_from_sensor.rotation;
+            let _ = writeln!(
+                poses,
+                "{} {:?} {:?} {:?} {:?} {:?} {:?} {:?}",
+                node.id, t.x, t.y, t.z, q.i, q.j, q.k, q.w
+            );
+            let origin = t.into();
+            let hits: Vec<[f64; 3]> = scans[node.id as usize]
+                .measurements
+                .iter()
+                .zip(&node.points)
+                .filter(|(m, _)| m.status == BeamStatus::Hit)
+                .map(|(_, p)| (node.map_from_sensor * p).coords.into())
+                .collect();
+            write_ply(&dir.join(format!("vp_{:03}.ply", node.id)), origin, &hits)?;
+        }
+        std::fs::write(dir.join("poses.txt"), poses)
+            .map_err(|e| Error::io(dir.join("poses.txt"), e))?;
+        let readme = format!(
+            "Scans exported by sigmap {version}: {what}.\n\
+             What a real robot records: the measured ranges and the NOMINAL (believed) sensor\n\
+             poses scene_from_sensor = T_sw^-1 T_rw T_cr; never the truth.\n\n\
+             Frames: the scene frame (x, y, z in metres) is the map frame; in the sensor\n\
+             frame the boresight is +z, horizontal angles turn toward +x, vertical toward +y.\n\n\
+             scans.graph  OctoMap ScanGraph (graph2tree, octovis): per viewpoint its pose\n\
+             \x20            (scene_from_sensor) and its end points in the SENSOR frame. A beam\n\
+             \x20            that returned nothing is a point {reach} x max range ({far} m) away:\n\
+             \x20            give graph2tree -m {max_range} and it clears free space up to the\n\
+             \x20            maximum range, as sigmap's ray update does.\n\
+             vp_NNN.ply   the hits of viewpoint NNN in the SCENE frame (nominal pose applied);\n\
+             \x20            vertex 0 (red) is the sensor origin.\n\
+             poses.txt    TUM trajectory: timestamp tx ty tz qx qy qz qw of scene_from_sensor,\n\
+             \x20            the timestamp being the viewpoint index.\n\n\
+             OctoMap's map of these scans at the experiment's resolution:\n\
+             \x20 {command}\n",
+            version = env!("CARGO_PKG_VERSION"),
+            reach = NO_RETURN_REACH,
+            far = NO_RETURN_REACH * view.scanner.max_range,
+            max_range = view.scanner.max_range,
+            command = graph2tree_command(Path::new("."), resolution, view.scanner.max_range),
+        );
+        std::fs::write(dir.join("README.txt"), readme)
+            .map_err(|e| Error::io(dir.join("README.txt"), e))
+    })
+}
