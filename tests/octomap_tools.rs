@@ -101,6 +101,22 @@ fn octomap_reads_what_sigmap_writes() {
     );
 }
 
+/// `sigmap map` of the quickstart's first run with the ray update at
+/// `resolution`, written to `out`, with `extra` arguments.
+fn ray_update_map(resolution: &str, out: &std::path::Path, extra: &[&str]) {
+    run(Command::new(env!("CARGO_BIN_EXE_sigmap"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "map",
+            "experiments/quickstart.toml",
+            "--method",
+            "ray_update",
+        ])
+        .args(["--resolution", resolution, "-q", "--out"])
+        .arg(out)
+        .args(extra));
+}
+
 /// sigmap's ray update against OctoMap's `insertPointCloud` on the same rays:
 /// the same tree, node for node (benches/octomap/insert.cpp, built here with
 /// g++ against Debian's liboctomap-dev).
@@ -117,21 +133,7 @@ fn ray_update_builds_the_same_tree_as_octomap() {
         .args(["-loctomap", "-loctomath"]));
     let rays = dir.path().join("rays.bin");
     let ours = dir.path().join("ours.ot");
-    run(Command::new(env!("CARGO_BIN_EXE_sigmap"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args([
-            "map",
-            "experiments/quickstart.toml",
-            "--method",
-            "ray_update",
-            "--resolution",
-            "0.02",
-            "-q",
-            "--out",
-        ])
-        .arg(&ours)
-        .arg("--export-rays")
-        .arg(&rays));
+    ray_update_map("0.02", &ours, &["--export-rays", rays.to_str().unwrap()]);
     let theirs = dir.path().join("octomap.ot");
     run(Command::new(&exe).arg(&rays).arg("0.02").arg(&theirs));
     let ours_tree = read_octree(&ours, Clamp::OCTOMAP).unwrap();
@@ -208,19 +210,7 @@ fn graph2tree_maps_the_exported_scans_as_the_ray_update_does() {
             .arg(&theirs)
             .args(["-res", resolution, "-m", "2"]));
         let ours = dir.path().join(format!("ours_{resolution}.ot"));
-        run(Command::new(env!("CARGO_BIN_EXE_sigmap"))
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .args([
-                "map",
-                "experiments/quickstart.toml",
-                "--method",
-                "ray_update",
-                "--resolution",
-                resolution,
-                "-q",
-                "--out",
-            ])
-            .arg(&ours));
+        ray_update_map(resolution, &ours, &[]);
         // graph2tree writes the full tree beside the .bt as <name>.bt.ot.
         let full = dir.path().join(format!("octomap_{resolution}.bt.ot"));
         let their_tree = read_octree(&full, Clamp::OCTOMAP).unwrap();
