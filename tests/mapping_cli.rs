@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{sigmap, sigmap_ok};
+use common::{root, sigmap, sigmap_ok};
 use sigmap::geometry::Point3;
 use sigmap::mapping::octomap_io::read_octree;
 use sigmap::mapping::Clamp;
@@ -166,4 +166,79 @@ fn ground_truth_files() {
         out.to_str().unwrap(),
     ]);
     assert_eq!(missing.status.code(), Some(2));
+}
+
+/// `sigmap score` on sigmap's own ray-update map of the quickstart's first
+/// run gives that run's runs.csv row (same truth, mask and metrics); a map
+/// at another resolution is refused.
+#[test]
+fn score_gives_a_maps_run_row() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let map = d.join("ray_update.ot");
+    let run_dir = d.join("run");
+    let r = root().display().to_string();
+    let text = std::fs::read_to_string(root().join("experiments/quickstart.toml"))
+        .unwrap()
+        .replace("../", &format!("{r}/"))
+        .replace(
+            "profiles/collaborative.toml",
+            &format!("{r}/experiments/profiles/collaborative.toml"),
+        )
+        .replace("seeds = [1, 2, 3]", "seeds = [1]")
+        .replace(
+            "methods = [\"blind\", \"unscented\", \"ray_update\"]",
+            "methods = [\"ray_update\"]",
+        );
+    let experiment = d.join("quickstart.toml");
+    std::fs::write(&experiment, text).unwrap();
+    let e = experiment.to_str().unwrap();
+    sigmap_ok(&[
+        "map",
+        e,
+        "--method",
+        "ray_update",
+        "-q",
+        "--out",
+        map.to_str().unwrap(),
+    ]);
+    sigmap_ok(&["run", e, "-q", "--out", run_dir.to_str().unwrap()]);
+    let csv = d.join("scores.csv");
+    sigmap_ok(&[
+        "score",
+        map.to_str().unwrap(),
+        e,
+        "-q",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    let coarse = d.join("coarse.ot");
+    sigmap_ok(&[
+        "map",
+        e,
+        "--method",
+        "ray_update",
+        "--resolution",
+        "0.02",
+        "-q",
+        "--out",
+        coarse.to_str().unwrap(),
+    ]);
+    let refused = sigmap(&["score", coarse.to_str().unwrap(), e]);
+    let rows = |path: &std::path::Path| -> Vec<Vec<String>> {
+        csv::Reader::from_path(path)
+            .unwrap()
+            .records()
+            .map(|r| r.unwrap().iter().map(String::from).collect())
+            .collect()
+    };
+    let (ours, theirs) = (rows(&csv), rows(&run_dir.join("runs.csv")));
+    assert_eq!(ours.len(), 1);
+    // Every column but the method name and the tree's memory (bytes).
+    let n = ours[0].len();
+    assert_eq!(ours[0][..2], theirs[0][..2]);
+    assert_eq!(ours[0][3..n - 1], theirs[0][3..n - 1]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("resolution is 0.02 m"), "{stderr}");
 }

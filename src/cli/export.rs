@@ -1,7 +1,7 @@
 //! `sigmap export`: one run's scans for another mapper (`experiment::export`).
 
 use super::{progress_bar, with_threads, ExportArgs};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::experiment::export::{graph2tree_command, write_export};
 use crate::experiment::model::MapperView;
 use crate::experiment::{self, Experiment};
@@ -9,19 +9,7 @@ use std::path::PathBuf;
 
 /// `sigmap export`.
 pub(crate) fn run(args: ExportArgs) -> Result<()> {
-    let base = Experiment::load(&args.experiment)?;
-    let cells = base.cells();
-    let experiment = match args.cell {
-        None => base,
-        Some(k) if k < cells.len() => Experiment::load_cell(&args.experiment, &cells[k])?,
-        Some(k) => {
-            return Err(Error::Usage(format!(
-                "--cell {k}: the experiment has {} sweep cells (0 to {})",
-                cells.len(),
-                cells.len() - 1
-            )))
-        }
-    };
+    let experiment = Experiment::load_cell_index(&args.experiment, args.cell)?;
     let seed = args.run.seed.unwrap_or(experiment.seed);
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")
@@ -44,7 +32,14 @@ pub(crate) fn run(args: ExportArgs) -> Result<()> {
         }
     );
     let view = MapperView::of(&experiment);
-    write_export(&out, &view, &run.scans, experiment.resolution, &what)?;
+    let offset = experiment.map_offset(seed);
+    write_export(
+        &out,
+        &view,
+        &run.scans,
+        (experiment.resolution, &offset),
+        &what,
+    )?;
     if !args.run.quiet {
         eprintln!(
             "wrote {} scans of {what} to {} (scans.graph, vp_NNN.ply, poses.txt, README.txt)",

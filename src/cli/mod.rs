@@ -13,6 +13,7 @@ mod opdf;
 mod propagate;
 mod regress;
 mod run;
+mod score;
 mod simulate;
 
 use crate::error::{Error, Result};
@@ -50,6 +51,12 @@ enum Command {
     /// nominal poses as a TUM trajectory and a README naming the frames; the
     /// believed poses only, never the truth. Prints the graph2tree command.
     Export(ExportArgs),
+    /// Score any OctoMap file against the ground truth of an experiment's run
+    ///
+    /// The same ground truth, observable mask and metrics as `sigmap run`, for
+    /// a map built by another mapper (e.g. graph2tree on `sigmap export`'s
+    /// scans). Prints the scores; --csv appends the row to a runs.csv-like file.
+    Score(ScoreArgs),
     /// Propagate one measurement through an uncertain chain with every method
     ///
     /// Blind, Jacobian, unscented and Monte Carlo: prints each method's
@@ -244,6 +251,22 @@ pub(crate) struct ExportArgs {
 }
 
 #[derive(Args, Debug)]
+pub(crate) struct ScoreArgs {
+    /// The map, .bt or .ot, in the run's map frame at the experiment's resolution.
+    map: PathBuf,
+    /// The experiment file (TOML) whose run the map is of.
+    experiment: PathBuf,
+    /// Sweep cell (0-based, in the order of summary.csv) [default: the base experiment].
+    #[arg(long)]
+    cell: Option<usize>,
+    /// Append the row to this CSV (runs.csv columns; created if absent).
+    #[arg(long)]
+    csv: Option<PathBuf>,
+    #[command(flatten)]
+    run: RunOptions,
+}
+
+#[derive(Args, Debug)]
 pub(crate) struct PropagateArgs {
     /// The chain file (TOML; see README, "Chain file").
     chain: PathBuf,
@@ -344,6 +367,7 @@ pub fn main() -> i32 {
         Command::Run(args) => run::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Export(args) => export::run(args),
+        Command::Score(args) => score::run(args),
         Command::Propagate(args) => propagate::run(args),
         Command::Opdf(args) => opdf::run(args),
         Command::Map(args) => map::run(args),

@@ -206,6 +206,22 @@ impl Experiment {
         Self::load_cell(path, &[])
     }
 
+    /// Reads the experiment with its sweep cell number `cell` (0-based, in
+    /// the order of [`Experiment::cells`]) applied; `None`: the base.
+    pub fn load_cell_index(path: &Path, cell: Option<usize>) -> Result<Self> {
+        let base = Self::load(path)?;
+        let cells = base.cells();
+        match cell {
+            None => Ok(base),
+            Some(k) if k < cells.len() => Self::load_cell(path, &cells[k]),
+            Some(k) => Err(Error::Usage(format!(
+                "--cell {k}: the experiment has {} sweep cells (0 to {})",
+                cells.len(),
+                cells.len() - 1
+            ))),
+        }
+    }
+
     /// Reads the experiment with one sweep cell's values applied.
     pub fn load_cell(path: &Path, cell: &[(String, SweepValue)]) -> Result<Self> {
         let mut by_file: [Vec<(String, toml::Value)>; 3] = Default::default();

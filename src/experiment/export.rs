@@ -7,7 +7,7 @@ use super::model::MapperView;
 use super::write_ply;
 use crate::error::{Error, Result};
 use crate::files::write_folder;
-use crate::geometry::Point3;
+use crate::geometry::{Isometry3, Point3, Vector3};
 use crate::mapping::scan_graph::{to_scan_graph, ScanNode};
 use crate::sim::scan::{BeamStatus, Scan};
 use std::fmt::Write as _;
@@ -18,17 +18,18 @@ use std::path::Path;
 /// the maximum range, as sigmap's ray update does.
 pub const NO_RETURN_REACH: f64 = 2.0;
 
-/// The graph nodes of `scans`: per scan its nominal `scene_from_camera` and
-/// its end points in the sensor frame (hits at their measured range,
-/// no-return beams at [`NO_RETURN_REACH`] maximum ranges; too-close and
-/// dropped beams left out).
-pub fn scan_nodes(view: &MapperView, scans: &[Scan]) -> Vec<ScanNode> {
+/// The graph nodes of `scans`: per scan its nominal pose in the map frame
+/// (`map = scene + offset`, the run's grid offset) and its end points in
+/// the sensor frame (hits at their measured range, no-return beams at
+/// [`NO_RETURN_REACH`] maximum ranges; too-close and dropped beams left out).
+pub fn scan_nodes(view: &MapperView, scans: &[Scan], offset: &Vector3) -> Vec<ScanNode> {
     let far = NO_RETURN_REACH * view.scanner.max_range;
+    let map_from_scene = Isometry3::translation(offset.x, offset.y, offset.z);
     scans
         .iter()
         .map(|scan| ScanNode {
             id: scan.viewpoint as u32,
-            map_from_sensor: scan.chain.scene_from_camera(),
+            map_from_sensor: map_from_scene * scan.chain.scene_from_camera(),
             points: scan
                 .measurements
                 .iter()
@@ -52,20 +53,22 @@ pub fn graph2tree_command(dir: &Path, resolution: f64, max_range: f64) -> String
 }
 
 /// Writes the export of `scans` into the folder `out` (staged, then
-/// renamed): `scans.graph`, `vp_NNN.ply`, `poses.txt`, `README.txt`.
+/// renamed): `scans.graph`, `vp_NNN.ply`, `poses.txt`, `README.txt`, in
+/// the map frame `map = scene + offset` (`Experiment::map_offset`), so that
+/// `sigmap score` scores a map of them as `sigmap run` scores its own.
 /// `what` names the experiment, seed and cell for the README.
 pub fn write_export(
     out: &Path,
     view: &MapperView,
     scans: &[Scan],
-    resolution: f64,
+    (resolution, offset): (f64, &Vector3),
     what: &str,
 ) -> Result<()> {
-    let nodes = scan_nodes(view, scans);
+    let nodes = scan_nodes(view, scans, offset);
     write_folder(out, |dir| {
         let graph = dir.join("scans.graph");
         std::fs::write(&graph, to_scan_graph(&nodes)).map_err(|e| Error::io(&graph, e))?;
-        let mut poses = String::from("# timestamp tx ty tz qx qy qz qw (TUM): scene_from_sensor per viewpoint; timestamp = viewpoint index\n");
+        let mut poses = format!("# timestamp tx ty tz qx qy qz qw (TUM): map_from_sensor per viewpoint (map = scene + {:?} m); timestamp = viewpoint index\n", [offset.x, offset.y, offset.z]);
         for node in &nodes {
             let t = node.map_from_sensor.translation.vector;
             let q = node.map_from_sensor.rotation;
@@ -89,20 +92,24 @@ pub fn write_export(
         let readme = format!(
             "Scans exported by sigmap {version}: {what}.\n\
              What a real robot records: the measured ranges and the NOMINAL (believed) sensor\n\
-             poses scene_from_sensor = T_sw^-1 T_rw T_cr; never the truth.\n\n\
-             Frames: the scene frame (x, y, z in metres) is the map frame; in the sensor\n\
-             frame the boresight is +z, horizontal angles turn toward +x, vertical toward +y.\n\n\
+             poses T_sw^-1 T_rw T_cr; never the truth.\n\n\
+             Frames: the map frame is the scene frame shifted by the run's grid offset\n\
+             {offset:?} m (zero unless the experiment sets grid_offset = true), as in\n\
+             `sigmap run`; in the sensor frame the boresight is +z, horizontal angles turn\n\
+             toward +x, vertical toward +y.\n\n\
              scans.graph  OctoMap ScanGraph (graph2tree, octovis): per viewpoint its pose\n\
-             \x20            (scene_from_sensor) and its end points in the SENSOR frame. A beam\n\
+             \x20            (map_from_sensor) and its end points in the SENSOR frame. A beam\n\
              \x20            that returned nothing is a point {reach} x max range ({far} m) away:\n\
              \x20            give graph2tree -m {max_range} and it clears free space up to the\n\
              \x20            maximum range, as sigmap's ray update does.\n\
-             vp_NNN.ply   the hits of viewpoint NNN in the SCENE frame (nominal pose applied);\n\
+             vp_NNN.ply   the hits of viewpoint NNN in the MAP frame (nominal pose applied);\n\
              \x20            vertex 0 (red) is the sensor origin.\n\
-             poses.txt    TUM trajectory: timestamp tx ty tz qx qy qz qw of scene_from_sensor,\n\
+             poses.txt    TUM trajectory: timestamp tx ty tz qx qy qz qw of map_from_sensor,\n\
              \x20            the timestamp being the viewpoint index.\n\n\
-             OctoMap's map of these scans at the experiment's resolution:\n\
-             \x20 {command}\n",
+             OctoMap's map of these scans at the experiment's resolution, and its scores:\n\
+             \x20 {command}\n\
+             \x20 sigmap score map.bt EXPERIMENT.toml --seed SEED [--cell K]\n",
+            offset = [offset.x, offset.y, offset.z],
             version = env!("CARGO_PKG_VERSION"),
             reach = NO_RETURN_REACH,
             far = NO_RETURN_REACH * view.scanner.max_range,

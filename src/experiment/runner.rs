@@ -126,6 +126,55 @@ pub fn run_seed(
     Ok((rows, timings, maps))
 }
 
+/// Scores a map built elsewhere (any OctoMap file) against the run of
+/// `experiment` with `seed`, with the ground truth and observable mask
+/// `sigmap run` uses, as a runs.csv row whose method is `name`. The map must
+/// be in the run's map frame (the scene frame shifted by
+/// `Experiment::map_offset`, which `sigmap export` applies) at the
+/// experiment's resolution; another resolution is refused.
+pub fn score_external(
+    experiment: &Experiment,
+    seed: u64,
+    map: &Octree,
+    name: &str,
+) -> Result<RunRow> {
+    if (map.resolution() - experiment.resolution).abs() > 1e-9 * experiment.resolution {
+        return Err(Error::Usage(format!(
+            "the map's resolution is {} m, the experiment's {} m: build the map at {} m \
+             (graph2tree -res, sigmap map --resolution) or score it against an experiment at {} m",
+            map.resolution(),
+            experiment.resolution,
+            experiment.resolution,
+            map.resolution()
+        )));
+    }
+    let run = simulate(experiment, seed, |_| {})?;
+    let offset = experiment.map_offset(seed);
+    let observable = observable_cells(
+        &experiment.scanner.directions,
+        experiment.scanner.max_range,
+        &run.truth.scans,
+        experiment.resolution,
+        &offset,
+    );
+    let truth = ground_truth(experiment, seed);
+    let scores = score_map(map, &truth, &observable);
+    let stats = map.stats();
+    let measured = Measured {
+        scores: &scores,
+        consistency: None,
+        nees_point: f64::NAN,
+        stats: &stats,
+    };
+    Ok(RunRow::new(
+        Experiment::cell_label(&experiment.cell),
+        seed,
+        name,
+        experiment.resolution,
+        &measured,
+    ))
+}
+
 /// For each hit of a scan (its measured points): the error `truth −
 /// propagated mean` and the propagated covariance, for consistency checks
 /// against the simulator.
