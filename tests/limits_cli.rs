@@ -3,19 +3,12 @@
 
 mod common;
 
-use common::{root, sigmap};
+use common::{portable_quickstart, root, sigmap};
 use std::path::{Path, PathBuf};
 
 /// The quickstart experiment with absolute paths, one line replaced.
 fn experiment(dir: &Path, name: &str, from: &str, to: &str) -> PathBuf {
-    let r = root().display().to_string();
-    let text = std::fs::read_to_string(root().join("experiments/quickstart.toml"))
-        .unwrap()
-        .replace("../", &format!("{r}/"))
-        .replace(
-            "profiles/collaborative.toml",
-            &format!("{r}/experiments/profiles/collaborative.toml"),
-        );
+    let text = portable_quickstart();
     assert!(text.contains(from), "{from}");
     let path = dir.join(format!("{name}.toml"));
     std::fs::write(&path, text.replacen(from, to, 1)).unwrap();

@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{root, sigmap, sigmap_ok};
+use common::{portable_quickstart, sigmap, sigmap_ok};
 use sigmap::geometry::Point3;
 use sigmap::mapping::octomap_io::read_octree;
 use sigmap::mapping::Clamp;
@@ -177,14 +177,7 @@ fn score_gives_a_maps_run_row() {
     let d = dir.path();
     let map = d.join("ray_update.ot");
     let run_dir = d.join("run");
-    let r = root().display().to_string();
-    let text = std::fs::read_to_string(root().join("experiments/quickstart.toml"))
-        .unwrap()
-        .replace("../", &format!("{r}/"))
-        .replace(
-            "profiles/collaborative.toml",
-            &format!("{r}/experiments/profiles/collaborative.toml"),
-        )
+    let text = portable_quickstart()
         .replace("seeds = [1, 2, 3]", "seeds = [1]")
         .replace(
             "methods = [\"blind\", \"unscented\", \"ray_update\"]",

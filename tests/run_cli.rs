@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{sigmap, sigmap_ok};
+use common::{portable_quickstart, sigmap, sigmap_ok};
 use sigmap::experiment::journal::journal_record;
 use sigmap::experiment::runner::{RunRow, TimingRow};
 
@@ -18,18 +18,6 @@ fn run(out: &std::path::Path, extra: &[&str]) {
     ];
     args.extend_from_slice(extra);
     sigmap_ok(&args);
-}
-
-/// The quickstart experiment with absolute paths, to edit and write elsewhere.
-fn portable_quickstart() -> String {
-    let root = env!("CARGO_MANIFEST_DIR");
-    std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
-        .unwrap()
-        .replace("../", &format!("{root}/"))
-        .replace(
-            "profiles/collaborative.toml",
-            &format!("{root}/experiments/profiles/collaborative.toml"),
-        )
 }
 
 #[test]

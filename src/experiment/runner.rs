@@ -15,6 +15,7 @@ use crate::mapping::Octree;
 use crate::sim::scan::ScanTruth;
 use crate::uncertainty::consistency::{nees, student_t_quantile, ConsistencyReport};
 use crate::uncertainty::{Propagator, UncertainPoint};
+use rustc_hash::FxHashSet;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -47,6 +48,17 @@ pub fn ground_truth(experiment: &Experiment, seed: u64) -> Octree {
     )
 }
 
+/// The cells some true beam of the run could have seen (the scoring mask).
+fn observable(experiment: &Experiment, truths: &[ScanTruth], offset: &Vector3) -> FxHashSet<u64> {
+    observable_cells(
+        &experiment.scanner.directions,
+        experiment.scanner.max_range,
+        truths,
+        experiment.resolution,
+        offset,
+    )
+}
+
 /// Runs one seed: simulate, then build, score and check each method.
 /// Returns the rows, the timings and the maps (in `experiment.methods` order).
 pub fn run_seed(
@@ -58,13 +70,7 @@ pub fn run_seed(
     let run = simulate(experiment, seed, |_| {})?;
     let simulate_s = start.elapsed().as_secs_f64();
     let offset = experiment.map_offset(seed);
-    let observable = observable_cells(
-        &experiment.scanner.directions,
-        experiment.scanner.max_range,
-        &run.truth.scans,
-        experiment.resolution,
-        &offset,
-    );
+    let observable = observable(experiment, &run.truth.scans, &offset);
     // What each scan measured (pooled or not): the same for every method.
     let view = MapperView::of(experiment);
     let measured: Vec<_> = run
@@ -150,13 +156,7 @@ pub fn score_external(
     }
     let run = simulate(experiment, seed, |_| {})?;
     let offset = experiment.map_offset(seed);
-    let observable = observable_cells(
-        &experiment.scanner.directions,
-        experiment.scanner.max_range,
-        &run.truth.scans,
-        experiment.resolution,
-        &offset,
-    );
+    let observable = observable(experiment, &run.truth.scans, &offset);
     let truth = ground_truth(experiment, seed);
     let scores = score_map(map, &truth, &observable);
     let stats = map.stats();

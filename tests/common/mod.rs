@@ -8,6 +8,20 @@ pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// The quickstart experiment's text with absolute paths, to edit and write
+/// elsewhere.
+#[allow(dead_code)] // not every test file edits experiments
+pub fn portable_quickstart() -> String {
+    let r = root().display().to_string();
+    std::fs::read_to_string(root().join("experiments/quickstart.toml"))
+        .unwrap()
+        .replace("../", &format!("{r}/"))
+        .replace(
+            "profiles/collaborative.toml",
+            &format!("{r}/experiments/profiles/collaborative.toml"),
+        )
+}
+
 /// Runs the `sigmap` binary from the repository root.
 pub fn sigmap(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_sigmap"))
