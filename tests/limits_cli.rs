@@ -282,3 +282,40 @@ fn export_refuses_a_cell_the_experiment_does_not_have() {
         "1 sweep cells",
     );
 }
+
+#[test]
+fn score_never_rewrites_a_csv_sigmap_did_not_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = dir.path().join("m.ot");
+    let (m, csv) = (map.to_str().unwrap(), dir.path().join("mine.csv"));
+    let out = sigmap(&[
+        "map",
+        "experiments/quickstart.toml",
+        "--method",
+        "ray_update",
+        "-q",
+        "--out",
+        m,
+    ]);
+    assert!(out.status.success());
+    let score = [
+        "score",
+        m,
+        "experiments/quickstart.toml",
+        "-q",
+        "--csv",
+        csv.to_str().unwrap(),
+    ];
+    assert!(sigmap(&score).status.success());
+    // Someone adds a column of their own: every runs.csv column is still
+    // there, but rewriting the file would drop theirs.
+    let theirs: String = std::fs::read_to_string(&csv)
+        .unwrap()
+        .lines()
+        .enumerate()
+        .map(|(i, l)| format!("{l},{}\n", if i == 0 { "note" } else { "keep me" }))
+        .collect();
+    std::fs::write(&csv, &theirs).unwrap();
+    refused(&score, "mine.csv", "header is not the runs.csv columns");
+    assert_eq!(std::fs::read_to_string(&csv).unwrap(), theirs);
+}

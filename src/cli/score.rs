@@ -4,7 +4,7 @@
 use super::{with_threads, ScoreArgs};
 use crate::error::Result;
 use crate::experiment::metrics::{Kind, METRICS};
-use crate::experiment::runner::{read_rows, score_external, write_rows, RunRow};
+use crate::experiment::runner::{append_row, score_external};
 use crate::experiment::Experiment;
 use crate::mapping::octomap_io::read_octree;
 
@@ -18,9 +18,7 @@ pub(crate) fn run(args: ScoreArgs) -> Result<()> {
         score_external(&experiment, seed, &map, &name)
     })??;
     if let Some(path) = &args.csv {
-        let mut rows: Vec<RunRow> = read_rows(path)?;
-        rows.push(row.clone());
-        write_rows(path, &rows)?;
+        append_row(path, &row)?;
     }
     if !args.run.quiet {
         println!(

@@ -3,7 +3,7 @@
 //! README saying what the frames are. Only what a real robot would record:
 //! the measurements and the nominal (believed) poses, never the truth.
 
-use super::model::MapperView;
+use super::model::{ray_inputs, MapperView};
 use super::write_ply;
 use crate::error::{Error, Result};
 use crate::files::write_folder;
@@ -77,15 +77,10 @@ pub fn write_export(
                 "{} {:?} {:?} {:?} {:?} {:?} {:?} {:?}",
                 node.id, t.x, t.y, t.z, q.i, q.j, q.k, q.w
             );
-            let origin = t.into();
-            let hits: Vec<[f64; 3]> = scans[node.id as usize]
-                .measurements
-                .iter()
-                .zip(&node.points)
-                .filter(|(m, _)| m.status == BeamStatus::Hit)
-                .map(|(_, p)| (node.map_from_sensor * p).coords.into())
-                .collect();
-            write_ply(&dir.join(format!("vp_{:03}.ply", node.id)), origin, &hits)?;
+            // The measured hits, as the ray update takes them, in the map frame.
+            let (_, hits, _) = ray_inputs(view, &scans[node.id as usize]);
+            let hits: Vec<[f64; 3]> = hits.iter().map(|h| (h.coords + offset).into()).collect();
+            write_ply(&dir.join(format!("vp_{:03}.ply", node.id)), t.into(), &hits)?;
         }
         std::fs::write(dir.join("poses.txt"), poses)
             .map_err(|e| Error::io(dir.join("poses.txt"), e))?;
@@ -119,4 +114,40 @@ pub fn write_export(
         std::fs::write(dir.join("README.txt"), readme)
             .map_err(|e| Error::io(dir.join("README.txt"), e))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::{read_ply, simulate, Experiment};
+
+    #[test]
+    fn each_ply_holds_its_viewpoints_measured_hits() {
+        let experiment = Experiment::load(Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/experiments/quickstart.toml"
+        )))
+        .unwrap();
+        let run = simulate(&experiment, 1, |_| {}).unwrap();
+        let view = MapperView::of(&experiment);
+        let offset = Vector3::new(0.004, -0.002, 0.001);
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("export");
+        write_export(&out, &view, &run.scans, (0.01, &offset), "test").unwrap();
+        // The profile drops 1% of the beams: the hits must still be the scan's.
+        assert!(run.scans[0]
+            .measurements
+            .iter()
+            .any(|m| m.status == BeamStatus::Dropout));
+        for scan in &run.scans {
+            let (origin, hits, _) = ray_inputs(&view, scan);
+            let (ply_origin, ply_hits) =
+                read_ply(&out.join(format!("vp_{:03}.ply", scan.viewpoint))).unwrap();
+            assert!((Vector3::from(ply_origin) - (origin.coords + offset)).norm() < 1e-12);
+            assert_eq!(ply_hits.len(), hits.len());
+            for (p, h) in ply_hits.iter().zip(&hits) {
+                assert!((Vector3::from(*p) - (h.coords + offset)).norm() < 1e-9);
+            }
+        }
+    }
 }

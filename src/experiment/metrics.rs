@@ -262,6 +262,11 @@ const COLUMNS: [&str; KEY_COLUMNS.len() + METRICS.len()] = {
     out
 };
 
+/// The header line of `runs.csv` (no newline).
+pub fn header() -> String {
+    COLUMNS.join(",")
+}
+
 /// One row of `runs.csv`: a run (cell, seed), a method, and every metric of
 /// [`METRICS`].
 #[derive(Clone, Debug, PartialEq)]

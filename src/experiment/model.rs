@@ -255,9 +255,8 @@ pub fn build_map_measured(
         vertical: &view.scanner.vertical_angles,
     };
     let max_range = view.scanner.max_range;
-    let settings: &MapSettings = view.settings;
-    let options = settings.merge_options();
-    let mut updater = RayUpdater::new(settings.update);
+    let options = view.settings.merge_options();
+    let mut updater = RayUpdater::new(view.settings.update);
     for (i, scan) in scans.iter().enumerate() {
         let full_chain = scan_chain(scan);
         let chain = if method == Method::Correlated {

@@ -273,6 +273,25 @@ pub fn read_rows<T: for<'de> Deserialize<'de>>(path: &std::path::Path) -> Result
         })
 }
 
+/// Appends `row` to the runs.csv-shaped file at `path` (created if absent),
+/// staged and renamed. A file whose header is not runs.csv's is refused, so
+/// no column of a file sigmap did not write is ever dropped.
+pub fn append_row(path: &std::path::Path, row: &RunRow) -> Result<()> {
+    if path.exists() {
+        let text = crate::error::read_text(path)?;
+        let first = text.lines().next().unwrap_or("");
+        if first != super::metrics::header() {
+            return Err(Error::input(
+                path,
+                "its header is not the runs.csv columns of this sigmap; choose another --csv file",
+            ));
+        }
+    }
+    let mut rows: Vec<RunRow> = read_rows(path)?;
+    rows.push(row.clone());
+    write_rows(path, &rows)
+}
+
 /// Writes rows as CSV into `path` atomically (staged, then renamed; see
 /// [`crate::files::write_file`]).
 pub fn write_rows<T: Serialize>(path: &std::path::Path, rows: &[T]) -> Result<()> {
