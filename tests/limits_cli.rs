@@ -319,3 +319,116 @@ fn score_never_rewrites_a_csv_sigmap_did_not_write() {
     refused(&score, "mine.csv", "header is not the runs.csv columns");
     assert_eq!(std::fs::read_to_string(&csv).unwrap(), theirs);
 }
+
+#[test]
+fn map_scans_refuses_bad_graphs_and_profiles() {
+    use sigmap::geometry::{Isometry3, Point3, Vector3};
+    use sigmap::mapping::scan_graph::{to_scan_graph, ScanNode};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let node = ScanNode {
+        id: 0,
+        map_from_sensor: Isometry3::new(Vector3::new(0.0, 0.0, 1.0), Vector3::new(3.1, 0.0, 0.0)),
+        points: (0..50)
+            .map(|i| Point3::new(0.01 * i as f64, 0.0, 0.8))
+            .collect(),
+    };
+    let good = to_scan_graph(&[node]);
+    let write = |name: &str, bytes: &[u8]| {
+        let path = d.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        path.to_str().unwrap().to_owned()
+    };
+    let profile = root()
+        .join("experiments/profiles/collaborative_poses.toml")
+        .display()
+        .to_string();
+    let out = d.join("map.bt");
+    let out = out.to_str().unwrap();
+    let map = |graph: &str, profile: &str| -> Vec<String> {
+        [
+            "map",
+            "--scans",
+            graph,
+            "--profile",
+            profile,
+            "--out",
+            out,
+            "-q",
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let refused_map = |graph: &str, profile: &str, names: &str, says: &str| {
+        let args = map(graph, profile);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused(&args, names, says);
+        assert!(!Path::new(out).exists(), "no map written");
+    };
+    let truncated = write("truncated.graph", &good[..good.len() - 10]);
+    refused_map(&truncated, &profile, "truncated.graph", "truncated");
+    let mut counts = good.clone();
+    counts[4..8].copy_from_slice(&1_000_000u32.to_le_bytes());
+    let counts = write("counts.graph", &counts);
+    refused_map(&counts, &profile, "counts.graph", "claims 1000000 points");
+    // The pose translation's x: after n, count, 50 points and the i32 tag.
+    let mut nan = good.clone();
+    let at = 4 + 4 + 50 * 28 + 4;
+    nan[at..at + 8].copy_from_slice(&f64::NAN.to_le_bytes());
+    let nan = write("nan.graph", &nan);
+    refused_map(&nan, &profile, "nan.graph", "NaN");
+    let missing = d.join("missing.graph").display().to_string();
+    refused_map(&missing, &profile, "missing.graph", "cannot read");
+    // The collaborative profile gives the arm error per joint.
+    let good = write("good.graph", &good);
+    let joints = root()
+        .join("experiments/profiles/collaborative.toml")
+        .display()
+        .to_string();
+    refused_map(&good, &joints, "collaborative.toml", "joint_sigma");
+    refused(
+        &["map", "--scans", &good, "--profile", &profile, "-q"],
+        "--out",
+        "--scans needs --out",
+    );
+    refused(
+        &[
+            "map",
+            "--scans",
+            &good,
+            "--profile",
+            &profile,
+            "--out",
+            out,
+            "--angular-step",
+            "0",
+        ],
+        "--angular-step",
+        "between 0 and 10 degrees",
+    );
+    refused(
+        &[
+            "map",
+            "experiments/quickstart.toml",
+            "--profile",
+            &profile,
+            "--out",
+            out,
+        ],
+        "--profile",
+        "are for --scans",
+    );
+    // Missing --profile is clap's: exit 2 with its usage text.
+    let args = ["map", "--scans", good.as_str(), "--out", out];
+    assert_eq!(sigmap(&args).status.code(), Some(2), "{args:?}");
+    // And the good graph maps.
+    let args = map(&good, &profile);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let ok = sigmap(&args);
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    assert!(Path::new(out).is_file());
+}

@@ -1,32 +1,59 @@
 //! `sigmap map`: simulate an experiment's run and build its map with one
 //! method; write the OctoMap file; optionally export the rays for OctoMap.
+//! With `--scans`, map a recorded ScanGraph instead (`experiment::recorded`).
 
 use super::{progress_bar, with_threads, MapArgs};
 use crate::error::{Error, Result};
 use crate::experiment::model::{build_map, MapperView};
+use crate::experiment::recorded::{map_recorded, read_scan_graph, RecordedOptions};
 use crate::experiment::{self, write_rays, Experiment};
 use crate::mapping::octomap_io::write_octree;
-use std::path::PathBuf;
+use crate::mapping::octree::Octree;
+use crate::mapping::settings::MapSettings;
+use crate::sim::profile::ErrorProfile;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+fn check_resolution(resolution: f64) -> Result<f64> {
+    if resolution.is_finite() && (0.001..=1.0).contains(&resolution) {
+        Ok(resolution)
+    } else {
+        Err(Error::Usage(
+            "--resolution must be between 0.001 and 1 m".into(),
+        ))
+    }
+}
+
+fn check_map_file(out: &Path) -> Result<()> {
+    if matches!(out.extension().and_then(|e| e.to_str()), Some("bt" | "ot")) {
+        Ok(())
+    } else {
+        Err(Error::input(out, "the map file must end in .bt or .ot"))
+    }
+}
 
 /// `sigmap map`.
 pub(crate) fn run(args: MapArgs) -> Result<()> {
-    let experiment = Experiment::load(&args.experiment)?;
-    let resolution = args.resolution.unwrap_or(experiment.resolution);
-    if !(resolution.is_finite() && (0.001..=1.0).contains(&resolution)) {
+    let Some(experiment) = &args.experiment else {
+        return run_recorded(&args);
+    };
+    if args.profile.is_some() || args.max_range.is_some() || args.angular_step.is_some() {
+        // clap drops `requires = "scans"` once --scans conflicts with the experiment.
         return Err(Error::Usage(
-            "--resolution must be between 0.001 and 1 m".into(),
+            "--profile, --max-range and --angular-step are for --scans (recorded scans); \
+             an experiment's scans take them from the experiment file"
+                .into(),
         ));
     }
+    let experiment = Experiment::load(experiment)?;
+    let resolution = check_resolution(args.resolution.unwrap_or(experiment.resolution))?;
     let seed = args.run.seed.unwrap_or(experiment.seed);
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")
             .join(&experiment.name)
             .join(format!("map_{}.bt", args.method))
     });
-    if !matches!(out.extension().and_then(|e| e.to_str()), Some("bt" | "ot")) {
-        return Err(Error::input(&out, "the map file must end in .bt or .ot"));
-    }
+    check_map_file(&out)?;
     let bar = progress_bar(experiment.viewpoints.len(), "simulating", args.run.quiet);
     let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
@@ -48,22 +75,84 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
     })??;
     let seconds = start.elapsed().as_secs_f64();
     write_octree(&out, &tree, experiment.map.clamp())?;
-    let stats = tree.stats();
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
     if !args.run.quiet {
-        eprintln!(
-            "{} map at {} m: {} nodes ({} leaves), {} bytes ({:.1} per leaf; OctoMap's layout: {:.1}); \
-             {beams} beams in {seconds:.2} s ({:.2} M beams/s); wrote {}",
-            args.method,
-            resolution,
-            stats.nodes,
-            stats.leaves,
-            stats.bytes,
-            stats.bytes as f64 / stats.leaves.max(1) as f64,
-            (16 * stats.nodes + 64 * stats.inner) as f64 / stats.leaves.max(1) as f64,
-            beams as f64 / seconds / 1e6,
-            out.display()
-        );
+        report(&args, resolution, &tree, beams, seconds, &out);
     }
     Ok(())
+}
+
+/// `sigmap map --scans GRAPH --profile PROFILE`.
+fn run_recorded(args: &MapArgs) -> Result<()> {
+    let scans = args.scans.as_ref().expect("clap: experiment or --scans");
+    let profile = args
+        .profile
+        .as_ref()
+        .expect("clap: --scans requires --profile");
+    let Some(out) = &args.out else {
+        return Err(Error::Usage(
+            "--scans needs --out MAP.bt (where to write the map)".into(),
+        ));
+    };
+    check_map_file(out)?;
+    if args.run.seed.is_some() {
+        return Err(Error::Usage(
+            "--seed has no meaning with --scans: recorded scans are not simulated".into(),
+        ));
+    }
+    let resolution = check_resolution(args.resolution.unwrap_or(0.1))?;
+    if let Some(m) = args.max_range {
+        if !(m.is_finite() && m > 0.0) {
+            return Err(Error::Usage(format!(
+                "--max-range {m}: must be a positive number of metres"
+            )));
+        }
+    }
+    let angular_step = match args.angular_step {
+        Some(deg) if !(deg.is_finite() && deg > 0.0 && deg <= 10.0) => {
+            return Err(Error::Usage(format!(
+                "--angular-step {deg}: must be between 0 and 10 degrees"
+            )))
+        }
+        step => step.map(f64::to_radians),
+    };
+    let profile = ErrorProfile::load(profile)?;
+    let nodes = read_scan_graph(scans)?;
+    let options = RecordedOptions {
+        method: args.method,
+        resolution,
+        max_range: args.max_range,
+        angular_step,
+    };
+    let settings = MapSettings::default();
+    let start = Instant::now();
+    let tree = with_threads(args.run.threads, || {
+        map_recorded(&nodes, &profile, &settings, &options)
+    })??;
+    let seconds = start.elapsed().as_secs_f64();
+    write_octree(out, &tree, settings.clamp())?;
+    if !args.run.quiet {
+        let points: usize = nodes.iter().map(|n| n.points.len()).sum();
+        eprintln!("{} scans from {}", nodes.len(), scans.display());
+        report(args, resolution, &tree, points, seconds, out);
+    }
+    Ok(())
+}
+
+/// Prints what was built.
+fn report(args: &MapArgs, resolution: f64, tree: &Octree, beams: usize, seconds: f64, out: &Path) {
+    let stats = tree.stats();
+    eprintln!(
+        "{} map at {} m: {} nodes ({} leaves), {} bytes ({:.1} per leaf; OctoMap's layout: {:.1}); \
+         {beams} beams in {seconds:.2} s ({:.2} M beams/s); wrote {}",
+        args.method,
+        resolution,
+        stats.nodes,
+        stats.leaves,
+        stats.bytes,
+        stats.bytes as f64 / stats.leaves.max(1) as f64,
+        (16 * stats.nodes + 64 * stats.inner) as f64 / stats.leaves.max(1) as f64,
+        beams as f64 / seconds / 1e6,
+        out.display()
+    );
 }

@@ -71,7 +71,9 @@ enum Command {
     ///
     /// blind, jacobian, unscented: the paper's OPDF merge; correlated: the
     /// unscented merge with the shared pose errors accounted once;
-    /// ray_update: OctoMap's update. Writes a .bt or .ot file.
+    /// ray_update: OctoMap's update. Writes a .bt or .ot file. With --scans
+    /// and --profile, maps scans recorded elsewhere (an OctoMap ScanGraph)
+    /// instead of an experiment's simulated run.
     Map(MapArgs),
     /// Write a scene's true occupancy as an OctoMap file
     ///
@@ -162,25 +164,44 @@ pub(crate) struct GroundTruthArgs {
 
 #[derive(Args, Debug)]
 pub(crate) struct MapArgs {
-    /// The experiment file (TOML).
-    experiment: PathBuf,
+    /// The experiment file (TOML); or give recorded scans with --scans.
+    #[arg(required_unless_present = "scans")]
+    experiment: Option<PathBuf>,
     /// blind, jacobian, unscented, correlated or ray_update.
     #[arg(long, default_value = "unscented")]
     method: crate::experiment::model::Method,
-    /// Finest voxel edge (m) [default: the experiment's `resolution`, else 0.01].
+    /// Finest voxel edge (m) [default: the experiment's `resolution`; with
+    /// --scans 0.1, as graph2tree].
     #[arg(long)]
     resolution: Option<f64>,
-    /// Map file, .bt or .ot [default: results/<experiment>/map_<method>.bt].
+    /// Map file, .bt or .ot [default: results/<experiment>/map_<method>.bt;
+    /// required with --scans].
     #[arg(long)]
     out: Option<PathBuf>,
     /// Also write the rays (origins and end points) for OctoMap's benchmark.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "scans")]
     export_rays: Option<PathBuf>,
+    /// Map scans recorded elsewhere: an OctoMap ScanGraph (.graph, e.g. from
+    /// log2graph or `sigmap export`), points in each node's sensor frame.
+    #[arg(long, conflicts_with = "experiment", requires = "profile")]
+    scans: Option<PathBuf>,
+    /// With --scans: the error profile (TOML) the scans are believed with;
+    /// its [world_from_robot] is the error of each node's pose.
+    #[arg(long, requires = "scans")]
+    profile: Option<PathBuf>,
+    /// With --scans: points farther than this (m) are beams that returned
+    /// nothing, clearing free space up to it (graph2tree's -m) [default:
+    /// every point is a hit].
+    #[arg(long, requires = "scans")]
+    max_range: Option<f64>,
+    /// With --scans: angular bin width of the OPDF grids (degrees) [default:
+    /// the median spacing of neighbouring points, a regular scanner's step].
+    #[arg(long, requires = "scans")]
+    angular_step: Option<f64>,
     #[command(flatten)]
     run: RunOptions,
 }
 
-/// Options of every command that simulates a run.
 #[derive(Args, Debug)]
 pub(crate) struct RunOptions {
     /// Seed of the run [default: the experiment's `seed`].

@@ -32,6 +32,7 @@ pub mod journal;
 pub mod metrics;
 pub mod model;
 pub mod plots;
+pub mod recorded;
 pub mod regress;
 pub mod runner;
 mod scan_files;

@@ -290,7 +290,11 @@ pub fn build_map_measured(
         merge(&mut tree, &grid, &options);
     }
     if method == Method::Correlated {
-        let covariance_at = shared_covariance(scans, offset);
+        let shared: Vec<_> = scans
+            .iter()
+            .map(|scan| split_chain(&scan_chain(scan), true))
+            .collect();
+        let covariance_at = shared_covariance(&shared, offset);
         expect_over_shared_motion(&mut tree, &covariance_at, options.clamp)
             .map_err(|e| Error::Usage(format!("method correlated: {e}")))?;
     }
@@ -299,16 +303,18 @@ pub fn build_map_measured(
 }
 
 /// `Σ(x)`: the covariance of the displacement of map point `x` by the
-/// shared pose errors, the mean over the run's viewpoints of
-/// `J_shared Γ_shared J_sharedᵀ` (first order; docs/math.md §6.6), from the
-/// scans' believed chains.
-fn shared_covariance(scans: &[Scan], offset: &Vector3) -> impl Fn(&Point3) -> Matrix3 + Sync {
-    let views: Vec<_> = scans
+/// shared pose errors, the mean over the viewpoints' `shared` chains (each
+/// with only its shared links uncertain, [`split_chain`]) of
+/// `J_shared Γ_shared J_sharedᵀ` (first order; docs/math.md §6.6).
+pub(crate) fn shared_covariance(
+    shared: &[UncertainChain],
+    offset: &Vector3,
+) -> impl Fn(&Point3) -> Matrix3 + Sync {
+    let views: Vec<_> = shared
         .iter()
-        .map(|scan| {
-            let chain = split_chain(&scan_chain(scan), true);
+        .map(|chain| {
             let camera_from_scene = chain.nominal().inverse();
-            (camera_from_scene, JacobianPropagator::new(&chain))
+            (camera_from_scene, JacobianPropagator::new(chain))
         })
         .collect();
     let offset = *offset;

@@ -1,0 +1,377 @@
+//! Maps of scans recorded elsewhere (`sigmap map --scans`): the nodes of an
+//! OctoMap ScanGraph, believed through an error profile, mapped with any
+//! method. Real data has no ground truth: this builds the map only.
+//!
+//! Each node's pose is taken as `T_rw` (the arm's pose) with the profile's
+//! arm covariance on its (x, y, z, roll, pitch, yaw), between an identity
+//! `T_sw` (map = scene) and an identity `T_cr` that carry the profile's
+//! registration and hand-eye covariances (docs/math.md §5.6). A point `p` of
+//! the node's cloud is a beam of direction `p / |p|` and range `|p|` with the
+//! profile's range and angular noise.
+//!
+//! [DESIGN] A recorded cloud comes without its scanner's raster, which the
+//! OPDF merge bins beams by. The raster is recovered from the points: every
+//! node gets one angular grid when all its points lie in front of the
+//! sensor (+z, the camera convention `sigmap export` writes; the grid is
+//! then the simulated scanner's own), else two half-space grids about the
+//! axis the points avoid most (a spinning lidar's z). The bin width is the
+//! median angular spacing of nearest neighbours, which is the raster step
+//! of a regular scanner; `--angular-step` overrides it.
+
+use super::model::{propagator, split_chain, Method};
+use crate::error::{Error, Result};
+use crate::geometry::{Matrix3, Matrix6, Point3, Pose, Vector3};
+use crate::mapping::merge::merge;
+use crate::mapping::octree::Octree;
+use crate::mapping::ray_update::RayUpdater;
+use crate::mapping::scan_graph::{parse_scan_graph, ScanNode};
+use crate::mapping::settings::MapSettings;
+use crate::mapping::shared_motion::expect_over_shared_motion;
+use crate::mapping::spherical::{spherical, Axis, BeamEnd, LocalGrid};
+use crate::sim::profile::{ArmError, ErrorProfile};
+use crate::sim::sensor::{RangeModel, MAX_BEAMS_PER_VIEWPOINT};
+use crate::uncertainty::{UncertainChain, UncertainPoint, UncertainPose};
+use rayon::prelude::*;
+use std::path::Path;
+
+/// How recorded scans are mapped.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RecordedOptions {
+    /// The mapping method.
+    pub method: Method,
+    /// Finest voxel edge (m).
+    pub resolution: f64,
+    /// `graph2tree -m`: a point farther than this is a beam that returned
+    /// nothing, clearing free space up to it; `None`: every point is a hit.
+    pub max_range: Option<f64>,
+    /// Angular bin width of the OPDF grids (rad); `None`: estimated per
+    /// grid from the points.
+    pub angular_step: Option<f64>,
+}
+
+/// The largest graph file read (bytes): its points are held in memory,
+/// about as many bytes as the file.
+pub const MAX_GRAPH_BYTES: u64 = 8 << 30;
+
+/// Reads and checks a ScanGraph file: every problem (missing, too large,
+/// truncated, wrong counts, NaN, no scans) is an error naming the file.
+pub fn read_scan_graph(path: &Path) -> Result<Vec<ScanNode>> {
+    let size = std::fs::metadata(path)
+        .map_err(|e| Error::input(path, format!("cannot read the scan graph: {e}")))?
+        .len();
+    if size > MAX_GRAPH_BYTES {
+        return Err(Error::input(
+            path,
+            format!(
+                "{size} bytes: sigmap maps graphs of at most {MAX_GRAPH_BYTES} bytes; \
+                 split the graph"
+            ),
+        ));
+    }
+    let bytes = std::fs::read(path)
+        .map_err(|e| Error::input(path, format!("cannot read the scan graph: {e}")))?;
+    let nodes = parse_scan_graph(&bytes)
+        .map_err(|e| Error::input(path, format!("not a valid ScanGraph: {e}")))?;
+    if nodes.iter().all(|n| n.points.is_empty()) {
+        return Err(Error::input(path, "the scan graph holds no points"));
+    }
+    Ok(nodes)
+}
+
+/// The profile's belief about a recorded node's chain: `T_sw = I`,
+/// `T_rw` = the node's pose, `T_cr = I`, with the profile's covariances.
+/// Fails when the arm error is given per joint (a graph has no joints).
+pub fn node_chain(node: &ScanNode, profile: &ErrorProfile) -> Result<UncertainChain> {
+    let arm = arm_covariance(profile)?;
+    let uncertain = |mean, covariance| UncertainPose { mean, covariance };
+    Ok(UncertainChain::paper(
+        uncertain(Pose::identity(), profile.world_from_scene),
+        uncertain(Pose::from_isometry(&node.map_from_sensor), arm),
+        uncertain(Pose::identity(), profile.robot_from_camera),
+    ))
+}
+
+fn arm_covariance(profile: &ErrorProfile) -> Result<Matrix6> {
+    match &profile.arm {
+        ArmError::Pose(covariance) => Ok(*covariance),
+        ArmError::Joints(_) => Err(Error::input(
+            &profile.source,
+            "[world_from_robot] gives joint_sigma, but a scan graph has no joint angles: \
+             give the pose error of the scans as [world_from_robot] sigma or covariance",
+        )),
+    }
+}
+
+/// Builds the map of recorded `nodes` (ScanGraph order) with the profile's
+/// range model and covariances.
+pub fn map_recorded(
+    nodes: &[ScanNode],
+    profile: &ErrorProfile,
+    settings: &MapSettings,
+    options: &RecordedOptions,
+) -> Result<Octree> {
+    let chains = nodes
+        .iter()
+        .map(|node| node_chain(node, profile))
+        .collect::<Result<Vec<_>>>()?;
+    let max_range = options.max_range.unwrap_or(f64::INFINITY);
+    let mut tree = Octree::new(options.resolution);
+    if options.method == Method::RayUpdate {
+        let mut updater = RayUpdater::new(settings.update);
+        for node in nodes {
+            let origin = Point3::from(node.map_from_sensor.translation.vector);
+            let hits: Vec<Point3> = node
+                .points
+                .iter()
+                .map(|p| node.map_from_sensor * p)
+                .collect();
+            updater.insert_scan(&mut tree, &origin, &hits, &[], max_range);
+        }
+        tree.shrink_to_fit();
+        return Ok(tree);
+    }
+    let merge_options = settings.merge_options();
+    for (node, full_chain) in nodes.iter().zip(&chains) {
+        let chain = if options.method == Method::Correlated {
+            split_chain(full_chain, false)
+        } else {
+            full_chain.clone()
+        };
+        let propagator = propagator(options.method, &chain).expect("an OPDF method");
+        let origin = propagator.origin();
+        let map_from_sensor = chain.nominal().rotation.to_rotation_matrix().into_inner();
+        for (sensor_from_grid, members) in grid_frames(&node.points) {
+            let angles: Vec<(f64, f64)> = members
+                .iter()
+                .map(|&i| {
+                    let (_, az, el) =
+                        spherical(&(sensor_from_grid.transpose() * node.points[i].coords));
+                    (az, el)
+                })
+                .collect();
+            let Some((azimuth, elevation)) = bin_axes(&angles, options.angular_step)? else {
+                continue;
+            };
+            let ends = beam_ends(
+                &node.points,
+                &members,
+                &profile.range,
+                &map_from_sensor,
+                max_range,
+                propagator.as_ref(),
+            );
+            let grid = LocalGrid::new(
+                origin.mean,
+                map_from_sensor * sensor_from_grid,
+                azimuth,
+                elevation,
+                max_range,
+                &ends,
+                &origin.covariance,
+            );
+            merge(&mut tree, &grid, &merge_options);
+        }
+    }
+    if options.method == Method::Correlated {
+        let views: Vec<_> = chains
+            .iter()
+            .map(|chain| split_chain(chain, true))
+            .collect();
+        let covariance_at = super::model::shared_covariance(&views, &Vector3::zeros());
+        expect_over_shared_motion(&mut tree, &covariance_at, merge_options.clamp)
+            .map_err(|e| Error::Usage(format!("method correlated: {e}")))?;
+    }
+    tree.shrink_to_fit();
+    Ok(tree)
+}
+
+/// The propagated ends of the points `members` of a cloud: a point within
+/// `max_range` is a hit with the range model's covariance, a farther one a
+/// no-return beam along its direction; the origin itself carries nothing.
+fn beam_ends(
+    points: &[Point3],
+    members: &[usize],
+    range: &RangeModel,
+    map_from_sensor: &Matrix3,
+    max_range: f64,
+    propagator: &dyn crate::uncertainty::Propagator,
+) -> Vec<BeamEnd> {
+    members
+        .par_iter()
+        .filter_map(|&i| {
+            let p = points[i].coords;
+            let r = p.norm();
+            if r <= 0.0 {
+                return None;
+            }
+            let d = p / r;
+            Some(if r > max_range {
+                BeamEnd::Miss {
+                    direction: map_from_sensor * d,
+                }
+            } else {
+                let g = propagator.propagate(&UncertainPoint {
+                    mean: p,
+                    covariance: range.point_covariance(&d, r),
+                });
+                BeamEnd::Hit {
+                    point: g.mean,
+                    covariance: g.covariance,
+                }
+            })
+        })
+        .collect()
+}
+
+/// The angular grids of a cloud: `(sensor_from_grid, the points in it)`.
+/// Grid x is the boresight and grid z the pole, so that every member has
+/// azimuth in [−π/2, π/2] (the grid does not wrap).
+pub fn grid_frames(points: &[Point3]) -> Vec<(Matrix3, Vec<usize>)> {
+    let valid: Vec<usize> = (0..points.len())
+        .filter(|&i| points[i].coords.norm() > 0.0)
+        .collect();
+    // The camera convention: boresight +z, pole +y (as sigmap's scanner).
+    let camera = Matrix3::new(0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0);
+    if valid.iter().all(|&i| points[i].z > 0.0) {
+        return vec![(camera, valid)];
+    }
+    // Else: the pole along the axis the directions avoid most, the
+    // boresight along the next axis, and one grid per half-space.
+    let mut spread = [0.0f64; 3];
+    for &i in &valid {
+        let d = points[i].coords.normalize();
+        for (s, c) in spread.iter_mut().zip(d.iter()) {
+            *s += c * c;
+        }
+    }
+    let pole = (0..3)
+        .min_by(|&a, &b| spread[a].total_cmp(&spread[b]))
+        .expect("three axes");
+    let (boresight, side) = ((pole + 1) % 3, (pole + 2) % 3);
+    let axis = |k: usize, sign: f64| Vector3::ith(k, sign);
+    let mut front = Vec::new();
+    let mut back = Vec::new();
+    for &i in &valid {
+        if points[i][boresight] >= 0.0 {
+            front.push(i);
+        } else {
+            back.push(i);
+        }
+    }
+    [(1.0, front), (-1.0, back)]
+        .into_iter()
+        .filter(|(_, members)| !members.is_empty())
+        .map(|(sign, members)| {
+            let frame =
+                Matrix3::from_columns(&[axis(boresight, sign), axis(side, sign), axis(pole, 1.0)]);
+            (frame, members)
+        })
+        .collect()
+}
+
+/// The azimuth and elevation bins of a grid holding `angles`: width
+/// `step` (else the median nearest-neighbour spacing), the first bin
+/// centred on the smallest angle. `None` for fewer than one point.
+fn bin_axes(angles: &[(f64, f64)], step: Option<f64>) -> Result<Option<(Axis, Axis)>> {
+    if angles.is_empty() {
+        return Ok(None);
+    }
+    let step = match step {
+        Some(step) => step,
+        None => median_spacing(angles).unwrap_or(0.5f64.to_radians()),
+    };
+    let axis = |values: &mut dyn Iterator<Item = f64>| {
+        let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+        let start = lo - step / 2.0;
+        let count = ((hi - start) / step).floor() + 1.0;
+        (start, count)
+    };
+    let (az_start, az_count) = axis(&mut angles.iter().map(|a| a.0));
+    let (el_start, el_count) = axis(&mut angles.iter().map(|a| a.1));
+    if az_count * el_count > MAX_BEAMS_PER_VIEWPOINT {
+        return Err(Error::Usage(format!(
+            "an angular step of {:.4} deg makes {az_count:.0} x {el_count:.0} bins per scan, \
+             more than {MAX_BEAMS_PER_VIEWPOINT:.0}: give a larger --angular-step",
+            step.to_degrees()
+        )));
+    }
+    let make = |start, count: f64| Axis {
+        start,
+        step,
+        count: count as usize,
+    };
+    Ok(Some((make(az_start, az_count), make(el_start, el_count))))
+}
+
+/// The median, over the points, of the (azimuth, elevation) distance to
+/// the nearest other point: a regular raster's step. `None` when no point
+/// has a distinct neighbour.
+pub fn median_spacing(angles: &[(f64, f64)]) -> Option<f64> {
+    let n = angles.len();
+    if n < 2 {
+        return None;
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for &(a, e) in angles {
+        lo = [lo[0].min(a), lo[1].min(e)];
+        hi = [hi[0].max(a), hi[1].max(e)];
+    }
+    let span = [hi[0] - lo[0], hi[1] - lo[1]];
+    // A bucket at least one raster step wide (the points of a full raster
+    // fill the bounding box; a partial one leaves it emptier, wider buckets).
+    let area = span[0] * span[1];
+    let bucket = if area > 0.0 {
+        (area / n as f64).sqrt()
+    } else {
+        span[0].max(span[1]) / n as f64
+    };
+    if bucket.is_nan() || bucket <= 0.0 {
+        return None;
+    }
+    let cell = |a: f64, e: f64| {
+        (
+            ((a - lo[0]) / bucket).floor() as i64,
+            ((e - lo[1]) / bucket).floor() as i64,
+        )
+    };
+    let mut order: Vec<((i64, i64), usize)> = angles
+        .iter()
+        .enumerate()
+        .map(|(i, &(a, e))| (cell(a, e), i))
+        .collect();
+    order.sort_unstable();
+    let mut nearest: Vec<f64> = order
+        .par_iter()
+        .filter_map(|&((ca, ce), i)| {
+            let (a, e) = angles[i];
+            let mut best = f64::INFINITY;
+            for da in -1..=1 {
+                for de in -1..=1 {
+                    let key = (ca + da, ce + de);
+                    let first = order.partition_point(|(k, _)| *k < key);
+                    for &(k, j) in &order[first..] {
+                        if k != key {
+                            break;
+                        }
+                        let d = (angles[j].0 - a).hypot(angles[j].1 - e);
+                        if d > 1e-12 && d < best {
+                            best = d;
+                        }
+                    }
+                }
+            }
+            best.is_finite().then_some(best)
+        })
+        .collect();
+    if nearest.is_empty() {
+        return None;
+    }
+    let middle = nearest.len() / 2;
+    let (_, median, _) = nearest.select_nth_unstable_by(middle, f64::total_cmp);
+    Some(*median)
+}
+
+#[cfg(test)]
+mod tests;
