@@ -280,7 +280,8 @@ fn shards_merge_into_the_one_machine_result() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    for file in ["runs.csv", "summary.csv"] {
+    // The report too: the same summary, charts, slice and fingerprint.
+    for file in ["runs.csv", "summary.csv", "report.html"] {
         assert_eq!(read(&merged.join(file)), read(&whole.join(file)), "{file}");
     }
     // A missing shard, an out-of-range shard, and a shard of another experiment are refused.

@@ -125,10 +125,14 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
         angular_step,
     };
     let settings = MapSettings::default();
+    let bar = progress_bar(nodes.len(), "mapping scans", args.run.quiet);
     let start = Instant::now();
     let tree = with_threads(args.run.threads, || {
-        map_recorded(&nodes, &profile, &settings, &options)
+        map_recorded(&nodes, &profile, &settings, &options, |k| {
+            bar.set_position(k as u64)
+        })
     })??;
+    bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     write_octree(out, &tree, settings.clamp())?;
     if !args.run.quiet {

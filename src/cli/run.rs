@@ -31,7 +31,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     if !args.run.quiet {
         print_headline(&outcome.experiment, &outcome.summary, outcome.runs);
         eprintln!(
-            "wrote {}/runs.csv, summary.csv, timings.csv and map_<method>.bt",
+            "wrote {}/runs.csv, summary.csv, timings.csv, map_<method>.bt and report.html",
             outcome.out.display()
         );
     }
@@ -42,7 +42,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
 pub(crate) fn merge(args: MergeArgs) -> Result<()> {
     let out = merge_shards(&args.experiment, &args.shards, args.out.as_deref())?;
     eprintln!(
-        "merged {} shards into {}/runs.csv, summary.csv and timings.csv",
+        "merged {} shards into {}/runs.csv, summary.csv, timings.csv and report.html",
         args.shards.len(),
         out.display()
     );

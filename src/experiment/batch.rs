@@ -6,11 +6,11 @@
 
 use super::journal::{fingerprint, journal_record, read_journal, Inputs, Wanted};
 use super::model::Method;
-use super::plots;
 use super::runner::{
     ground_truth, read_rows, run_seed, summarise, write_rows, RunRow, SummaryRow, TimingRow,
 };
 use super::Experiment;
+use super::{plots, report};
 use crate::error::{Error, Result};
 use crate::mapping::octomap_io::write_octree;
 use rayon::prelude::*;
@@ -207,7 +207,8 @@ pub fn run_experiment(
         timings.extend(t);
     }
     let runs = rows.len();
-    let summary = finalize(&out, &experiment, &labels, rows, timings)?;
+    let (summary, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
+    write_report_with_slice(&out, &experiment, &summary, &inputs, charts)?;
     std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
     Ok(RunOutcome {
         experiment,
@@ -241,14 +242,15 @@ pub fn finished_runs(dir: &Path, wanted: &Wanted) -> Result<BTreeSet<(String, u6
 
 /// Sorts the rows into the one order every machine agrees on (cell, seed,
 /// method as the experiment lists them), writes runs.csv, timings.csv,
-/// summary.csv and the summary's charts, and returns the summary.
+/// summary.csv and the summary's charts, and returns the summary and the
+/// charts written.
 fn finalize(
     out: &Path,
     experiment: &Experiment,
     labels: &[String],
     mut rows: Vec<RunRow>,
     mut timings: Vec<TimingRow>,
-) -> Result<Vec<SummaryRow>> {
+) -> Result<(Vec<SummaryRow>, Vec<PathBuf>)> {
     let methods: &[Method] = &experiment.methods;
     let method_order = |m: &str| {
         methods
@@ -266,20 +268,38 @@ fn finalize(
     write_rows(&out.join("timings.csv"), &timings)?;
     let summary = summarise(&rows, labels, methods);
     write_rows(&out.join("summary.csv"), &summary)?;
-    plots::plot_scores(
+    let mut charts = plots::plot_scores(
         &out.join("scores.svg"),
         &summary,
         &experiment.cells(),
         methods,
     )?;
-    plots::plot_coverage(&out.join("coverage.svg"), &summary, &labels[0], methods)?;
-    plots::plot_safety(
+    charts.extend(plots::plot_safety(
         &out.join("safety.svg"),
         &summary,
         &experiment.cells(),
         methods,
-    )?;
-    Ok(summary)
+    )?);
+    let coverage = out.join("coverage.svg");
+    plots::plot_coverage(&coverage, &summary, &labels[0], methods)?;
+    charts.push(coverage);
+    Ok((summary, charts))
+}
+
+/// Writes `report.html` from the folder's summary and `charts`, with the
+/// first run's slice when the folder holds it.
+fn write_report_with_slice(
+    out: &Path,
+    experiment: &Experiment,
+    summary: &[SummaryRow],
+    inputs: &Inputs,
+    mut charts: Vec<PathBuf>,
+) -> Result<()> {
+    let slice = out.join("slice.svg");
+    if slice.is_file() {
+        charts.push(slice);
+    }
+    report::write_report(out, experiment, summary, inputs, &charts)
 }
 
 /// `run.toml`: which experiment, inputs, version and shard produced a folder.
@@ -399,7 +419,7 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
     }
     let out = results_dir(&experiment, out);
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    finalize(&out, &experiment, &labels, rows, timings)?;
+    let (summary, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
     write_manifest(&out, &experiment, &expected, 1, 1)?;
     // The first run's maps and slice live in the shard that ran it.
     for dir in shards {
@@ -414,5 +434,6 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
             }
         }
     }
+    write_report_with_slice(&out, &experiment, &summary, &expected, charts)?;
     Ok(out)
 }

@@ -34,6 +34,7 @@ pub mod model;
 pub mod plots;
 pub mod recorded;
 pub mod regress;
+pub mod report;
 pub mod runner;
 mod scan_files;
 mod simulate;

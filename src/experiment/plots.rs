@@ -13,7 +13,7 @@ use crate::plot::{panels, Panel, Series};
 use crate::sim::scene::Bounds;
 use crate::uncertainty::consistency::expected_coverage;
 use plotters::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 fn mean<'a>(
     summary: &'a [SummaryRow],
@@ -50,13 +50,13 @@ pub fn plot_scores(
     summary: &[SummaryRow],
     cells: &[Vec<(String, SweepValue)>],
     methods: &[Method],
-) -> Result<()> {
+) -> Result<Vec<PathBuf>> {
     let Some(axis) = cells
         .first()
         .and_then(|c| c.first())
         .map(|(f, _)| f.clone())
     else {
-        return Ok(());
+        return Ok(Vec::new());
     };
     let label = |cell: &[(String, SweepValue)]| Experiment::cell_label(cell);
     // A string axis (profiles, scenes) is plotted at the index of its value.
@@ -129,12 +129,14 @@ pub fn plot_scores(
         })
         .collect();
     panels(path, &list)?;
+    let mut written = vec![path.to_path_buf()];
     // And every metric of summary.csv on its own chart, beside the overview.
     let dir = path.parent().unwrap_or(Path::new("."));
     for metric in super::metrics::summarised().map(|m| m.name) {
         let series = series_for(metric);
+        let chart = dir.join(format!("score_{metric}.svg"));
         panels(
-            &dir.join(format!("score_{metric}.svg")),
+            &chart,
             &[Panel {
                 title: metric,
                 x_label: &axis,
@@ -144,8 +146,9 @@ pub fn plot_scores(
                 series: &series,
             }],
         )?;
+        written.push(chart);
     }
-    Ok(())
+    Ok(written)
 }
 
 /// `safety.svg`, when the experiment sweeps the risk level
@@ -158,12 +161,12 @@ pub fn plot_safety(
     summary: &[SummaryRow],
     cells: &[Vec<(String, SweepValue)>],
     methods: &[Method],
-) -> Result<()> {
+) -> Result<Vec<PathBuf>> {
     let Some(risk_axis) = cells
         .first()
         .and_then(|c| c.iter().position(|(f, _)| f == "experiment.risk"))
     else {
-        return Ok(());
+        return Ok(Vec::new());
     };
     let mut series: Vec<Series> = Vec::new();
     for &method in methods {
@@ -209,7 +212,8 @@ pub fn plot_safety(
             log_y: false,
             series: &series,
         }],
-    )
+    )?;
+    Ok(vec![path.to_path_buf()])
 }
 
 /// `coverage.svg`: the share of true points inside the 1, 2, 3 sigma

@@ -103,12 +103,13 @@ fn arm_covariance(profile: &ErrorProfile) -> Result<Matrix6> {
 }
 
 /// Builds the map of recorded `nodes` (ScanGraph order) with the profile's
-/// range model and covariances.
+/// range model and covariances; `done(k)` after the k-th node.
 pub fn map_recorded(
     nodes: &[ScanNode],
     profile: &ErrorProfile,
     settings: &MapSettings,
     options: &RecordedOptions,
+    done: impl Fn(usize),
 ) -> Result<Octree> {
     let chains = nodes
         .iter()
@@ -118,7 +119,7 @@ pub fn map_recorded(
     let mut tree = Octree::new(options.resolution);
     if options.method == Method::RayUpdate {
         let mut updater = RayUpdater::new(settings.update);
-        for node in nodes {
+        for (k, node) in nodes.iter().enumerate() {
             let origin = Point3::from(node.map_from_sensor.translation.vector);
             let hits: Vec<Point3> = node
                 .points
@@ -126,12 +127,13 @@ pub fn map_recorded(
                 .map(|p| node.map_from_sensor * p)
                 .collect();
             updater.insert_scan(&mut tree, &origin, &hits, &[], max_range);
+            done(k + 1);
         }
         tree.shrink_to_fit();
         return Ok(tree);
     }
     let merge_options = settings.merge_options();
-    for (node, full_chain) in nodes.iter().zip(&chains) {
+    for (k, (node, full_chain)) in nodes.iter().zip(&chains).enumerate() {
         let chain = if options.method == Method::Correlated {
             split_chain(full_chain, false)
         } else {
@@ -171,6 +173,7 @@ pub fn map_recorded(
             );
             merge(&mut tree, &grid, &merge_options);
         }
+        done(k + 1);
     }
     if options.method == Method::Correlated {
         let views: Vec<_> = chains

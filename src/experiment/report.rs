@@ -1,0 +1,236 @@
+//! `report.html`: one self-contained page beside a run's files — the
+//! experiment, sigmap's version and the input fingerprint, the headline
+//! scores with their 95% intervals per sweep cell, and every chart inline
+//! (SVG in the page; nothing is fetched). Written by `sigmap run` and
+//! `sigmap merge`; like the other outputs, the same inputs give the same
+//! bytes (no dates, no timings).
+
+use super::journal::Inputs;
+use super::runner::SummaryRow;
+use super::Experiment;
+use crate::error::{Error, Result};
+use crate::files::write_file;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// The metrics of the headline table: (column, title, digits).
+const HEADLINE: [(&str, &str, usize); 8] = [
+    ("precision", "precision", 3),
+    ("recall", "recall", 3),
+    ("f1", "F1", 3),
+    ("false_free_rate", "false-free", 4),
+    ("unknown_fraction", "unknown", 3),
+    ("brier", "Brier", 3),
+    ("roc_auc", "ROC AUC", 3),
+    ("anees", "ANEES", 2),
+];
+
+/// What each chart shows, by file name (`score_<metric>.svg` are captioned
+/// by their metric).
+fn caption(name: &str) -> String {
+    match name {
+        "scores.svg" => {
+            "F1, false-free rate, Brier and ANEES against the sweep, one line per method \
+             (bars: 95% intervals over the seeds)"
+                .into()
+        }
+        "safety.svg" => "The safety curve: false-free rate against precision as the risk level varies".into(),
+        "coverage.svg" => {
+            "Coverage: the share of true points inside the 1, 2, 3 sigma ellipsoids, against the χ² expectation"
+                .into()
+        }
+        "slice.svg" => {
+            "A horizontal slice through the objects, first seed: each map against the truth \
+             (correct occupied, correct free, false-free, false-occupied, unknown)"
+                .into()
+        }
+        other => match other.strip_prefix("score_").and_then(|n| n.strip_suffix(".svg")) {
+            Some(metric) => format!("{metric} against the sweep"),
+            None => other.into(),
+        },
+    }
+}
+
+/// Text made safe for HTML.
+fn escape(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+const STYLE: &str = "body{font-family:sans-serif;max-width:1440px;margin:2em auto;padding:0 1em;color:#222}\
+h1{margin-bottom:0.2em}table{border-collapse:collapse;margin:0.5em 0 1.5em}\
+th,td{border:1px solid #ccc;padding:0.25em 0.6em;text-align:right}\
+th:first-child,td:first-child{text-align:left}th{background:#f2f2f2}\
+td small{color:#666}figure{margin:1em 0 2em}figure svg{max-width:100%;height:auto}\
+figcaption{color:#444;margin-top:0.3em}dl{display:grid;grid-template-columns:max-content auto;gap:0.2em 1em}\
+dt{font-weight:bold}dd{margin:0;font-family:monospace}.description{white-space:pre-wrap}";
+
+/// The page for a finished run folder: `charts` are the SVG files to
+/// show, in order (missing ones are skipped).
+pub fn render(
+    experiment: &Experiment,
+    summary: &[SummaryRow],
+    inputs: &Inputs,
+    charts: &[PathBuf],
+) -> Result<String> {
+    let mut html = String::new();
+    let name = escape(&experiment.name);
+    let _ = write!(
+        html,
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n\
+         <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n\
+         <title>sigmap: {name}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n\
+         <h1>{name}</h1>\n<p class=\"description\">{}</p>\n<dl>\n",
+        escape(&experiment.description)
+    );
+    let seeds: Vec<String> = experiment.seeds.iter().map(u64::to_string).collect();
+    let methods: Vec<&str> = experiment.methods.iter().map(|m| m.as_str()).collect();
+    for (term, value) in [
+        ("sigmap", env!("CARGO_PKG_VERSION").to_string()),
+        ("input fingerprint", inputs.fingerprint.clone()),
+        ("seeds", seeds.join(", ")),
+        ("methods", methods.join(", ")),
+        ("resolution", format!("{} m", experiment.resolution)),
+        ("sweep cells", experiment.cells().len().to_string()),
+    ] {
+        let _ = writeln!(html, "<dt>{term}</dt><dd>{}</dd>", escape(&value));
+    }
+    html.push_str("</dl>\n<details><summary>Input files and their hashes</summary>\n<table>\n");
+    html.push_str("<tr><th>file</th><th>hash</th></tr>\n");
+    for (file, hash) in &inputs.files {
+        let _ = writeln!(
+            html,
+            "<tr><td>{}</td><td>{}</td></tr>",
+            escape(file),
+            escape(hash)
+        );
+    }
+    html.push_str("</table>\n</details>\n");
+    headline(&mut html, experiment, summary);
+    html.push_str("<h2>Charts</h2>\n");
+    let mut per_metric = String::new();
+    for chart in charts {
+        let Ok(svg) = std::fs::read_to_string(chart) else {
+            continue;
+        };
+        let file = chart
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let start = svg
+            .find("<svg")
+            .ok_or_else(|| Error::input(chart, "not an SVG chart"))?;
+        let figure = format!(
+            "<figure id=\"{}\">\n{}\n<figcaption>{} (<code>{}</code>)</figcaption>\n</figure>\n",
+            escape(file.trim_end_matches(".svg")),
+            &svg[start..],
+            escape(&caption(&file)),
+            escape(&file)
+        );
+        if file.starts_with("score_") {
+            per_metric.push_str(&figure);
+        } else {
+            html.push_str(&figure);
+        }
+    }
+    if !per_metric.is_empty() {
+        html.push_str(
+            "<details><summary>Every metric of summary.csv against the sweep</summary>\n",
+        );
+        html.push_str(&per_metric);
+        html.push_str("</details>\n");
+    }
+    html.push_str(
+        "<p><small>Written by <code>sigmap run</code> / <code>sigmap merge</code>; the numbers are \
+         those of summary.csv (mean over the seeds, 95% interval of the mean).</small></p>\n\
+         </body>\n</html>\n",
+    );
+    Ok(html)
+}
+
+/// One table per sweep cell: a row per method, each headline metric as
+/// `mean` over `[low, high]`.
+fn headline(html: &mut String, experiment: &Experiment, summary: &[SummaryRow]) {
+    html.push_str("<h2>Scores</h2>\n");
+    let _ = writeln!(
+        html,
+        "<p>Means over {} seeds, with the 95% interval of the mean; the full table is \
+         summary.csv, every run runs.csv.</p>",
+        experiment.seeds.len()
+    );
+    let mut cells: Vec<&str> = Vec::new();
+    for row in summary {
+        if !cells.contains(&row.cell.as_str()) {
+            cells.push(&row.cell);
+        }
+    }
+    for cell in cells {
+        if !cell.is_empty() {
+            let _ = writeln!(html, "<h3>{}</h3>", escape(cell));
+        }
+        html.push_str("<table class=\"headline\">\n<tr><th>method</th>");
+        for (_, title, _) in HEADLINE {
+            let _ = write!(html, "<th>{title}</th>");
+        }
+        html.push_str("</tr>\n");
+        for method in &experiment.methods {
+            let _ = write!(html, "<tr><td>{}</td>", method.as_str());
+            for (metric, _, digits) in HEADLINE {
+                let row = summary
+                    .iter()
+                    .find(|s| s.cell == cell && s.method == method.as_str() && s.metric == metric);
+                match row {
+                    Some(s) if s.mean.is_finite() => {
+                        let _ = write!(html, "<td>{:.digits$}", s.mean);
+                        if s.ci95_low.is_finite() {
+                            let _ = write!(
+                                html,
+                                "<br><small>[{:.digits$}, {:.digits$}]</small>",
+                                s.ci95_low, s.ci95_high
+                            );
+                        }
+                        html.push_str("</td>");
+                    }
+                    _ => html.push_str("<td>–</td>"),
+                }
+            }
+            html.push_str("</tr>\n");
+        }
+        html.push_str("</table>\n");
+    }
+}
+
+/// Writes `out/report.html` (staged).
+pub fn write_report(
+    out: &Path,
+    experiment: &Experiment,
+    summary: &[SummaryRow],
+    inputs: &Inputs,
+    charts: &[PathBuf],
+) -> Result<()> {
+    let html = render(experiment, summary, inputs, charts)?;
+    write_file(&out.join("report.html"), html.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_is_escaped() {
+        assert_eq!(
+            escape("<b>\"a\" & 'b'</b>"),
+            "&lt;b&gt;&quot;a&quot; &amp; &#39;b&#39;&lt;/b&gt;"
+        );
+    }
+}
