@@ -175,6 +175,29 @@ fn class_differences(a: &Octree, b: &Octree) -> (usize, usize) {
     (differ, known)
 }
 
+/// `sigmap score` of two maps against the quickstart's first run (rows
+/// appended to `csv`): per metric, the two values.
+fn quickstart_scores(
+    maps: [&std::path::Path; 2],
+    csv: &std::path::Path,
+) -> impl Fn(&str) -> (f64, f64) {
+    for map in maps {
+        run(Command::new(env!("CARGO_BIN_EXE_sigmap"))
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .arg("score")
+            .arg(map)
+            .args(["experiments/quickstart.toml", "-q", "--csv"])
+            .arg(csv));
+    }
+    let mut reader = csv::Reader::from_path(csv).unwrap();
+    let header = reader.headers().unwrap().clone();
+    let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
+    move |metric| {
+        let i = header.iter().position(|h| h == metric).unwrap();
+        (rows[0][i].parse().unwrap(), rows[1][i].parse().unwrap())
+    }
+}
+
 /// `sigmap export` writes a ScanGraph that OctoMap's own `graph2tree` reads
 /// and maps into the tree sigmap's ray update builds from the same scans:
 /// node for node at 2 cm; at the quickstart's 1 cm, OctoMap's `f32` points
@@ -226,18 +249,7 @@ fn graph2tree_maps_the_exported_scans_as_the_ray_update_does() {
         assert!(differ * 1000 <= known, "{differ} of {known} differ");
         // At the experiment's resolution, `sigmap score` on OctoMap's map
         // gives sigmap's own ray-update scores within 0.001.
-        let scores = dir.path().join("scores.csv");
-        for map in [&full, &ours] {
-            run(Command::new(env!("CARGO_BIN_EXE_sigmap"))
-                .current_dir(env!("CARGO_MANIFEST_DIR"))
-                .arg("score")
-                .arg(map)
-                .args(["experiments/quickstart.toml", "-q", "--csv"])
-                .arg(&scores));
-        }
-        let mut reader = csv::Reader::from_path(&scores).unwrap();
-        let header = reader.headers().unwrap().clone();
-        let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
+        let score = quickstart_scores([&full, &ours], &dir.path().join("scores.csv"));
         for metric in [
             "precision",
             "recall",
@@ -247,9 +259,7 @@ fn graph2tree_maps_the_exported_scans_as_the_ray_update_does() {
             "brier",
             "roc_auc",
         ] {
-            let i = header.iter().position(|h| h == metric).unwrap();
-            let (theirs, ours): (f64, f64) =
-                (rows[0][i].parse().unwrap(), rows[1][i].parse().unwrap());
+            let (theirs, ours) = score(metric);
             eprintln!("{metric}: graph2tree {theirs:.6}, sigmap {ours:.6}");
             assert!(
                 (theirs - ours).abs() <= 1e-3,
@@ -356,21 +366,9 @@ fn map_scans_agrees_with_graph2tree_on_a_log2graph_graph() {
             "--out",
         ])
         .arg(&simulated));
-    let scores = dir.path().join("scores.csv");
-    for map in [&recorded, &simulated] {
-        run(sigmap()
-            .arg("score")
-            .arg(map)
-            .args(["experiments/quickstart.toml", "-q", "--csv"])
-            .arg(&scores));
-    }
-    let mut reader = csv::Reader::from_path(&scores).unwrap();
-    let header = reader.headers().unwrap().clone();
-    let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
+    let score = quickstart_scores([&recorded, &simulated], &dir.path().join("scores.csv"));
     for metric in ["precision", "recall", "f1", "false_free_rate", "brier"] {
-        let i = header.iter().position(|h| h == metric).unwrap();
-        let (recorded, simulated): (f64, f64) =
-            (rows[0][i].parse().unwrap(), rows[1][i].parse().unwrap());
+        let (recorded, simulated) = score(metric);
         eprintln!("{metric}: recorded graph {recorded:.6}, simulated scans {simulated:.6}");
         assert!(
             (recorded - simulated).abs() <= 5e-3,
