@@ -5,7 +5,7 @@
 //! the chance that a surface lies inside the cell with the share of the cell
 //! seen in front of the surface, and fuse in log-odds.
 
-use super::chord::{origin_step, ray_box, CellModel};
+use super::chord::{origin_step, ray_box, Beam, CellModel, TAIL};
 use super::octree::{Clamp, Key, Octree, DEPTH};
 use super::opdf::logit;
 use super::spherical::{BinBox, LocalGrid};
@@ -106,6 +106,28 @@ impl Merger<'_> {
     }
 }
 
+/// Whether the centre line of a beam that cannot hold the surface in C
+/// crosses C.
+fn any_crosses(
+    grid: &LocalGrid,
+    centre: &Vector3,
+    half: f64,
+    bins: &BinBox,
+    may_hold: &impl Fn(&Beam) -> bool,
+) -> bool {
+    for a in bins.azimuth.0..=bins.azimuth.1 {
+        for e in bins.elevation.0..=bins.elevation.1 {
+            let (beams, inverse) = grid.bin_beams(a, e);
+            for (beam, inv) in beams.iter().zip(inverse) {
+                if !may_hold(beam) && ray_box(&grid.origin, inv, centre, half).is_some() {
+                    return true;
+                }
+            }
+        }
+    }
+    false
+}
+
 /// `P(C occupied | viewpoint)` for the cube `centre ± half` (§5.4), from two
 /// things the viewpoint says about C:
 /// - `H`, how surely a surface lies inside C: the maximum, over the beams whose
@@ -127,12 +149,38 @@ pub fn cell_occupancy(
     let inside = |beam, a: f64, b: f64| {
         model.split(beam, a, b, max_range).1 * origin_step(0.5 * (a + b), beam.sigma_origin)
     };
+    // A beam whose surface band misses the ball's range interval (which
+    // holds every chord through C) says "no surface inside" exactly: `split`
+    // returns 0 inside for it. Only the others need their chord; the rest
+    // matter only for whether any centre line crosses C at all.
+    let (lo, hi) = bins.range;
+    let margin = 1e-9 * (1.0 + hi);
+    let may_hold = |beam: &Beam| {
+        beam.range.is_finite()
+            && beam.range - TAIL * beam.sigma <= hi + margin
+            && beam.range + TAIL * beam.sigma >= lo - margin
+    };
     let mut hit = 0.0f64;
     let mut crossed = false;
+    let mut others = false;
     for a in bins.azimuth.0..=bins.azimuth.1 {
         for e in bins.elevation.0..=bins.elevation.1 {
             let (beams, inverse) = grid.bin_beams(a, e);
+            if beams.is_empty() {
+                continue;
+            }
+            // The bin's bands (and its nearest surface's) span [near, far]:
+            // when that misses [lo, hi], none of its beams may hold it.
+            let bin = grid.bin_summary(a, e);
+            if bin.near > hi + margin || bin.far < lo - margin {
+                others = true;
+                continue;
+            }
             for (beam, inv) in beams.iter().zip(inverse) {
+                if !may_hold(beam) {
+                    others = true;
+                    continue;
+                }
                 if let Some((t0, t1)) = ray_box(&grid.origin, inv, centre, half) {
                     crossed = true;
                     hit = hit.max(inside(beam, t0, t1));
@@ -142,9 +190,16 @@ pub fn cell_occupancy(
     }
     if !crossed {
         if let Some((a, e)) = grid.bin_of(centre) {
-            let (lo, hi) = bins.range;
-            for beam in grid.bin_beams(a, e).0 {
-                hit = hit.max(inside(beam, lo, hi));
+            let centre_beams = grid.bin_beams(a, e).0;
+            // The fallback (no centre line crosses C) can only raise `hit`
+            // through a beam that may hold the surface; decide whether it
+            // applies only then.
+            if centre_beams.iter().any(may_hold)
+                && !(others && any_crosses(grid, centre, half, bins, &may_hold))
+            {
+                for beam in centre_beams {
+                    hit = hit.max(inside(beam, lo, hi));
+                }
             }
         }
     }

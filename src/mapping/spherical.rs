@@ -248,6 +248,12 @@ impl LocalGrid {
         (&self.beams[lo..hi], &self.inverse[lo..hi])
     }
 
+    /// The aggregate of bin `(a, e)`'s own beams (the pyramid's level 0).
+    #[inline]
+    pub fn bin_summary(&self, a: usize, e: usize) -> &BoxSummary {
+        &self.levels[0].cells[a * self.elevation.count + e]
+    }
+
     /// The nearest surface of bin `(a, e)`: a beam of the bin's own, but at
     /// the smallest range its surface may take anywhere within the bin's solid
     /// angle, so that a point judged by its bin is called free only if it is
