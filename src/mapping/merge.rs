@@ -203,6 +203,19 @@ pub fn cell_occupancy(
             }
         }
     }
+    combine(grid, model, centre, half, hit)
+}
+
+/// The viewpoint's verdict on C from `hit` (H): with `F` the mean over C's
+/// eight corners of `P(λ > ρ)` against the nearest surface of the corner's
+/// bin, `view_occupancy(H, F)`; `p_hi` outright when H reaches it.
+pub(crate) fn combine(
+    grid: &LocalGrid,
+    model: &CellModel,
+    centre: &Vector3,
+    half: f64,
+    hit: f64,
+) -> Option<f64> {
     if hit >= model.p_hi {
         // A surface surely inside: the share seen free changes nothing.
         return Some(model.p_hi);
@@ -215,7 +228,7 @@ pub fn cell_occupancy(
             continue;
         };
         if let Some(surface) = grid.bin_surface(a, e) {
-            free += model.free_at(surface, (point - grid.origin).norm(), max_range);
+            free += model.free_at(surface, (point - grid.origin).norm(), grid.max_range);
         }
     }
     free /= 8.0;

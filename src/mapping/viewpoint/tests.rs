@@ -352,7 +352,7 @@ fn a_grazing_view_never_certifies_a_cell_row_holding_a_sliver_of_solid() {
 
 /// `cell_occupancy` as it was before beams whose surface band misses a
 /// cell were skipped: every beam's chord, the fallback whenever no centre
-/// line crosses the cell.
+/// line crosses the cell (the corner test, untouched, is shared).
 fn cell_occupancy_unskipped(
     grid: &LocalGrid,
     model: &CellModel,
@@ -384,22 +384,7 @@ fn cell_occupancy_unskipped(
             }
         }
     }
-    if hit >= model.p_hi {
-        return Some(model.p_hi);
-    }
-    let mut free = 0.0;
-    for corner in 0..8u8 {
-        let sign = |axis: u8| if corner >> axis & 1 == 1 { half } else { -half };
-        let point = centre + Vector3::new(sign(0), sign(1), sign(2));
-        if let Some(surface) = grid
-            .bin_of(&point)
-            .and_then(|(a, e)| grid.bin_surface(a, e))
-        {
-            free += model.free_at(surface, (point - grid.origin).norm(), max_range);
-        }
-    }
-    free /= 8.0;
-    (hit > 0.0 || free > 0.0).then(|| model.view_occupancy(hit, free))
+    crate::mapping::merge::combine(grid, model, centre, half, hit)
 }
 
 #[test]
