@@ -1,29 +1,17 @@
 //! `sigmap ground-truth`: a scene's true occupancy as an OctoMap file.
 
-use super::GroundTruthArgs;
-use crate::error::{Error, Result};
+use super::{resolution_arg, GroundTruthArgs};
+use crate::error::Result;
 use crate::eval::ground_truth::{cell_counts, check_resolution, voxelise};
-use crate::mapping::octomap_io::write_octree;
+use crate::mapping::octomap_io::{check_octree_path, write_octree};
 use crate::mapping::Clamp;
 use crate::sim::scene::Scene;
 use std::time::Instant;
 
 /// `sigmap ground-truth`.
 pub(crate) fn run(args: GroundTruthArgs) -> Result<()> {
-    if !(args.resolution.is_finite() && (0.001..=1.0).contains(&args.resolution)) {
-        return Err(Error::Usage(
-            "--resolution must be between 0.001 and 1 m".into(),
-        ));
-    }
-    if !matches!(
-        args.out.extension().and_then(|e| e.to_str()),
-        Some("bt" | "ot")
-    ) {
-        return Err(Error::input(
-            &args.out,
-            "the ground-truth file must end in .bt or .ot",
-        ));
-    }
+    resolution_arg(args.resolution)?;
+    check_octree_path(&args.out)?;
     let scene = Scene::load(&args.scene)?;
     check_resolution(&scene, args.resolution)?;
     let start = Instant::now();

@@ -2,35 +2,17 @@
 //! method; write the OctoMap file; optionally export the rays for OctoMap.
 //! With `--scans`, map a recorded ScanGraph instead (`experiment::recorded`).
 
-use super::{progress_bar, with_threads, MapArgs};
+use super::{progress_bar, resolution_arg, with_threads, MapArgs};
 use crate::error::{Error, Result};
 use crate::experiment::model::{build_map, MapperView};
 use crate::experiment::recorded::{map_recorded, read_scan_graph, RecordedOptions};
 use crate::experiment::{self, write_rays, Experiment};
-use crate::mapping::octomap_io::write_octree;
+use crate::mapping::octomap_io::{check_octree_path, write_octree};
 use crate::mapping::octree::Octree;
 use crate::mapping::settings::MapSettings;
 use crate::sim::profile::ErrorProfile;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-fn check_resolution(resolution: f64) -> Result<f64> {
-    if resolution.is_finite() && (0.001..=1.0).contains(&resolution) {
-        Ok(resolution)
-    } else {
-        Err(Error::Usage(
-            "--resolution must be between 0.001 and 1 m".into(),
-        ))
-    }
-}
-
-fn check_map_file(out: &Path) -> Result<()> {
-    if matches!(out.extension().and_then(|e| e.to_str()), Some("bt" | "ot")) {
-        Ok(())
-    } else {
-        Err(Error::input(out, "the map file must end in .bt or .ot"))
-    }
-}
 
 /// `sigmap map`.
 pub(crate) fn run(args: MapArgs) -> Result<()> {
@@ -46,14 +28,14 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         ));
     }
     let experiment = Experiment::load(experiment)?;
-    let resolution = check_resolution(args.resolution.unwrap_or(experiment.resolution))?;
+    let resolution = resolution_arg(args.resolution.unwrap_or(experiment.resolution))?;
     let seed = args.run.seed.unwrap_or(experiment.seed);
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")
             .join(&experiment.name)
             .join(format!("map_{}.bt", args.method))
     });
-    check_map_file(&out)?;
+    check_octree_path(&out)?;
     let bar = progress_bar(experiment.viewpoints.len(), "simulating", args.run.quiet);
     let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
@@ -94,13 +76,13 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
             "--scans needs --out MAP.bt (where to write the map)".into(),
         ));
     };
-    check_map_file(out)?;
+    check_octree_path(out)?;
     if args.run.seed.is_some() {
         return Err(Error::Usage(
             "--seed has no meaning with --scans: recorded scans are not simulated".into(),
         ));
     }
-    let resolution = check_resolution(args.resolution.unwrap_or(0.1))?;
+    let resolution = resolution_arg(args.resolution.unwrap_or(0.1))?;
     if let Some(m) = args.max_range {
         if !(m.is_finite() && m > 0.0) {
             return Err(Error::Usage(format!(

@@ -361,6 +361,17 @@ pub(crate) fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send
     Ok(pool.install(f))
 }
 
+/// A `--resolution` argument, checked against [`RESOLUTIONS`](crate::mapping::octree::RESOLUTIONS).
+pub(crate) fn resolution_arg(resolution: f64) -> Result<f64> {
+    if crate::mapping::octree::RESOLUTIONS.contains(&resolution) {
+        Ok(resolution)
+    } else {
+        Err(Error::Usage(
+            "--resolution must be between 0.001 and 1 m".into(),
+        ))
+    }
+}
+
 pub(crate) fn progress_bar(len: usize, what: &str, quiet: bool) -> ProgressBar {
     let bar = ProgressBar::new(len as u64);
     if quiet || !std::io::stderr().is_terminal() {

@@ -326,7 +326,7 @@ impl Experiment {
                 "[robot] and [world_from_scene] poses must be finite".into()
             ));
         }
-        if !(file.resolution.is_finite() && (0.001..=1.0).contains(&file.resolution)) {
+        if !crate::mapping::octree::RESOLUTIONS.contains(&file.resolution) {
             return Err(bad(format!(
                 "resolution = {} must be between 0.001 and 1 m",
                 file.resolution

@@ -111,12 +111,23 @@ fn write_bt_node(tree: &Octree, node: usize, out: &mut Vec<u8>) {
     }
 }
 
+/// Checks that `path` names an OctoMap file (`.bt` or `.ot`), so that a
+/// command can refuse it before any work.
+pub fn check_octree_path(path: &Path) -> Result<()> {
+    if matches!(path.extension().and_then(|e| e.to_str()), Some("bt" | "ot")) {
+        Ok(())
+    } else {
+        Err(Error::input(path, "an octree file must end in .bt or .ot"))
+    }
+}
+
 /// Writes `.ot` or `.bt` by the file's extension.
 pub fn write_octree(path: &Path, tree: &Octree, clamp: Clamp) -> Result<()> {
-    let bytes = match path.extension().and_then(|e| e.to_str()) {
-        Some("ot") => to_ot(tree),
-        Some("bt") => to_bt(tree, clamp),
-        _ => return Err(Error::input(path, "an octree file must end in .bt or .ot")),
+    check_octree_path(path)?;
+    let bytes = if path.extension().is_some_and(|e| e == "ot") {
+        to_ot(tree)
+    } else {
+        to_bt(tree, clamp)
     };
     crate::files::write_file(path, &bytes)
 }

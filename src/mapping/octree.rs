@@ -107,6 +107,9 @@ pub fn check_span(reach: f64, resolution: f64) -> Result<(), String> {
 /// truth and the observable mask walk them: about 2 minutes at 2³¹).
 pub const MAX_WORKSPACE_CELLS: f64 = 2_147_483_648.0;
 
+/// The finest voxel edges sigmap maps at (m).
+pub const RESOLUTIONS: std::ops::RangeInclusive<f64> = 0.001..=1.0;
+
 /// Checks that a workspace of `extent` metres per axis holds at most
 /// [`MAX_WORKSPACE_CELLS`] cells of edge `resolution`.
 pub fn check_cells(extent: [f64; 3], resolution: f64) -> Result<(), String> {
