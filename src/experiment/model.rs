@@ -14,7 +14,7 @@ use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::BeamEnd;
 use crate::mapping::viewpoint::{local_grid, Raster};
-use crate::mapping::{MapSettings, Octree};
+use crate::mapping::{Clamp, MapSettings, Octree};
 use crate::sim::scan::{BeamStatus, Scan};
 use crate::sim::sensor::RangeModel;
 use crate::sim::sensor::Scanner;
@@ -290,23 +290,37 @@ pub fn build_map_measured(
         merge(&mut tree, &grid, &options);
     }
     if method == Method::Correlated {
-        let shared: Vec<_> = scans
-            .iter()
-            .map(|scan| split_chain(&scan_chain(scan), true))
-            .collect();
-        let covariance_at = shared_covariance(&shared, offset);
-        expect_over_shared_motion(&mut tree, &covariance_at, options.clamp)
-            .map_err(|e| Error::Usage(format!("method correlated: {e}")))?;
+        let chains: Vec<_> = scans.iter().map(scan_chain).collect();
+        take_shared_motion(&mut tree, &chains, offset, options.clamp)?;
     }
     tree.shrink_to_fit();
     Ok(tree)
+}
+
+/// The `correlated` method's last step: the shared pose errors of the
+/// viewpoints' believed `chains`, taken once on the fused map (docs/math.md
+/// §6.6). Fails only when it would not fit in memory at this resolution.
+pub(crate) fn take_shared_motion(
+    tree: &mut Octree,
+    chains: &[UncertainChain],
+    offset: &Vector3,
+    clamp: Clamp,
+) -> Result<()> {
+    let shared: Vec<_> = chains
+        .iter()
+        .map(|chain| split_chain(chain, true))
+        .collect();
+    let covariance_at = shared_covariance(&shared, offset);
+    expect_over_shared_motion(tree, &covariance_at, clamp)
+        .map(|_| ())
+        .map_err(|e| Error::Usage(format!("method correlated: {e}")))
 }
 
 /// `Σ(x)`: the covariance of the displacement of map point `x` by the
 /// shared pose errors, the mean over the viewpoints' `shared` chains (each
 /// with only its shared links uncertain, [`split_chain`]) of
 /// `J_shared Γ_shared J_sharedᵀ` (first order; docs/math.md §6.6).
-pub(crate) fn shared_covariance(
+fn shared_covariance(
     shared: &[UncertainChain],
     offset: &Vector3,
 ) -> impl Fn(&Point3) -> Matrix3 + Sync {

@@ -18,7 +18,7 @@
 //! median angular spacing of nearest neighbours, which is the raster step
 //! of a regular scanner; `--angular-step` overrides it.
 
-use super::model::{propagator, split_chain, Method};
+use super::model::{propagator, split_chain, take_shared_motion, Method};
 use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Pose, Vector3};
 use crate::mapping::merge::merge;
@@ -26,7 +26,6 @@ use crate::mapping::octree::Octree;
 use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::scan_graph::{parse_scan_graph, ScanNode};
 use crate::mapping::settings::MapSettings;
-use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::{spherical, Axis, BeamEnd, LocalGrid};
 use crate::sim::profile::{ArmError, ErrorProfile};
 use crate::sim::sensor::{RangeModel, MAX_BEAMS_PER_VIEWPOINT};
@@ -176,21 +175,16 @@ pub fn map_recorded(
         done(k + 1);
     }
     if options.method == Method::Correlated {
-        let views: Vec<_> = chains
-            .iter()
-            .map(|chain| split_chain(chain, true))
-            .collect();
-        let covariance_at = super::model::shared_covariance(&views, &Vector3::zeros());
-        expect_over_shared_motion(&mut tree, &covariance_at, merge_options.clamp)
-            .map_err(|e| Error::Usage(format!("method correlated: {e}")))?;
+        take_shared_motion(&mut tree, &chains, &Vector3::zeros(), merge_options.clamp)?;
     }
     tree.shrink_to_fit();
     Ok(tree)
 }
 
-/// The propagated ends of the points `members` of a cloud: a point within
-/// `max_range` is a hit with the range model's covariance, a farther one a
-/// no-return beam along its direction; the origin itself carries nothing.
+/// The propagated ends of the points `members` of a cloud (none at the
+/// origin, [`grid_frames`]): a point within `max_range` is a hit with the
+/// range model's covariance, a farther one a no-return beam along its
+/// direction.
 fn beam_ends(
     points: &[Point3],
     members: &[usize],
@@ -201,14 +195,11 @@ fn beam_ends(
 ) -> Vec<BeamEnd> {
     members
         .par_iter()
-        .filter_map(|&i| {
+        .map(|&i| {
             let p = points[i].coords;
             let r = p.norm();
-            if r <= 0.0 {
-                return None;
-            }
             let d = p / r;
-            Some(if r > max_range {
+            if r > max_range {
                 BeamEnd::Miss {
                     direction: map_from_sensor * d,
                 }
@@ -221,7 +212,7 @@ fn beam_ends(
                     point: g.mean,
                     covariance: g.covariance,
                 }
-            })
+            }
         })
         .collect()
 }
@@ -272,16 +263,20 @@ pub fn grid_frames(points: &[Point3]) -> Vec<(Matrix3, Vec<usize>)> {
         .collect()
 }
 
+/// The bin width of a grid whose points have no two distinct directions
+/// (a single point): any width gives it one bin.
+const SINGLE_DIRECTION_STEP: f64 = 0.5 * std::f64::consts::PI / 180.0;
+
 /// The azimuth and elevation bins of a grid holding `angles`: width
 /// `step` (else the median nearest-neighbour spacing), the first bin
-/// centred on the smallest angle. `None` for fewer than one point.
+/// centred on the smallest angle. `None` for no points.
 fn bin_axes(angles: &[(f64, f64)], step: Option<f64>) -> Result<Option<(Axis, Axis)>> {
     if angles.is_empty() {
         return Ok(None);
     }
     let step = match step {
         Some(step) => step,
-        None => median_spacing(angles).unwrap_or(0.5f64.to_radians()),
+        None => median_spacing(angles).unwrap_or(SINGLE_DIRECTION_STEP),
     };
     let axis = |values: &mut dyn Iterator<Item = f64>| {
         let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {

@@ -5,7 +5,7 @@
 //! the chance that a surface lies inside the cell with the share of the cell
 //! seen in front of the surface, and fuse in log-odds.
 
-use super::chord::{origin_step, ray_box, Beam, CellModel, TAIL};
+use super::chord::{origin_step, ray_box, Beam, CellModel};
 use super::octree::{Clamp, Key, Octree, DEPTH};
 use super::opdf::logit;
 use super::spherical::{BinBox, LocalGrid};
@@ -157,8 +157,8 @@ pub fn cell_occupancy(
     let margin = 1e-9 * (1.0 + hi);
     let may_hold = |beam: &Beam| {
         beam.range.is_finite()
-            && beam.range - TAIL * beam.sigma <= hi + margin
-            && beam.range + TAIL * beam.sigma >= lo - margin
+            && beam.band_start(max_range) <= hi + margin
+            && beam.reach(max_range) >= lo - margin
     };
     let mut hit = 0.0f64;
     let mut crossed = false;
