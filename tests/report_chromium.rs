@@ -9,12 +9,11 @@ use common::{portable_quickstart, sigmap_ok};
 use std::path::Path;
 use std::process::Command;
 
-/// Chromium as the machine's probe starts it: headless, no sandbox (root),
-/// no background networking (the machine's network is closed), a fresh
-/// profile.
-fn chromium(profile: &Path) -> Command {
-    let mut command = Command::new("chromium");
-    command
+/// Runs Chromium as the machine's probe starts it (headless, no sandbox as
+/// root, no background networking on the closed network, a fresh profile)
+/// with `args`, checks it succeeded, and returns its stdout.
+fn chromium(profile: &Path, args: &[&str]) -> String {
+    let out = Command::new("chromium")
         .args([
             "--headless",
             "--no-sandbox",
@@ -26,8 +25,16 @@ fn chromium(profile: &Path) -> Command {
             "--disable-sync",
             "--hide-scrollbars",
         ])
-        .arg(format!("--user-data-dir={}", profile.display()));
-    command
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 /// Pixels of `png` within 6 of `rgb` in every channel.
@@ -97,17 +104,7 @@ fn the_report_renders_in_headless_chromium() {
     // The browser's DOM holds the figures and the headline tables.
     let profile = dir.path().join("chromium");
     let url = format!("file://{}", report.display());
-    let dom = chromium(&profile)
-        .arg("--dump-dom")
-        .arg(&url)
-        .output()
-        .unwrap();
-    assert!(
-        dom.status.success(),
-        "{}",
-        String::from_utf8_lossy(&dom.stderr)
-    );
-    let dom = String::from_utf8_lossy(&dom.stdout);
+    let dom = chromium(&profile, &["--dump-dom", &url]);
     assert_eq!(dom.matches("<figure").count(), charts);
     assert_eq!(
         dom.matches("<table class=\"headline\"").count(),
@@ -118,16 +115,13 @@ fn the_report_renders_in_headless_chromium() {
     // The screenshot: not blank, and the slice's colours are on it (the
     // charts were drawn, not just parsed).
     let shot = dir.path().join("report.png");
-    let status = chromium(&profile)
-        .arg("--window-size=1400,2600")
-        .arg(format!("--screenshot={}", shot.display()))
-        .arg(&url)
-        .output()
-        .unwrap();
-    assert!(
-        status.status.success(),
-        "{}",
-        String::from_utf8_lossy(&status.stderr)
+    chromium(
+        &profile,
+        &[
+            "--window-size=1400,2600",
+            &format!("--screenshot={}", shot.display()),
+            &url,
+        ],
     );
     let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&shot).unwrap()));
     let mut reader = decoder.read_info().unwrap();
