@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{portable_quickstart, sigmap_ok};
+use common::{portable_quickstart, sigmap_ok, tool_ok};
 use std::path::Path;
 use std::process::Command;
 
@@ -13,28 +13,22 @@ use std::process::Command;
 /// root, no background networking on the closed network, a fresh profile)
 /// with `args`, checks it succeeded, and returns its stdout.
 fn chromium(profile: &Path, args: &[&str]) -> String {
-    let out = Command::new("chromium")
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--hide-scrollbars",
-        ])
-        .arg(format!("--user-data-dir={}", profile.display()))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
+    tool_ok(
+        Command::new("chromium")
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-quic",
+                "--no-first-run",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                "--hide-scrollbars",
+            ])
+            .arg(format!("--user-data-dir={}", profile.display()))
+            .args(args),
+    )
 }
 
 /// Pixels of `png` within 6 of `rgb` in every channel.

@@ -6,7 +6,7 @@ use std::process::Command;
 
 mod common;
 
-use common::{root, sigmap, simulate_quickstart};
+use common::{root, sigmap, simulate_quickstart, tool_ok};
 
 fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     let mut out = Vec::new();
@@ -250,16 +250,7 @@ fn ply_reads_in_an_independent_reader() {
     let script = "import sys; from plyfile import PlyData\n\
                   v = PlyData.read(sys.argv[1])['vertex']\n\
                   print(len(v), v[0]['red'], v[0]['green'], repr(float(v[1]['x'])))";
-    let out = Command::new("python3")
-        .args(["-c", script, ply.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
+    let text = tool_ok(Command::new("python3").args(["-c", script, ply.to_str().unwrap()]));
     let fields: Vec<&str> = text.split_whitespace().collect();
     let (origin, points) = sigmap::experiment::read_ply(&ply).unwrap();
     assert_eq!(fields[0].parse::<usize>().unwrap(), points.len() + 1);

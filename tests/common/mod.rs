@@ -44,6 +44,19 @@ pub fn sigmap_ok(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// Runs an external tool to success (showing its stderr if not) and
+/// returns its stdout.
+#[allow(dead_code)] // not every test file runs a tool
+pub fn tool_ok(command: &mut Command) -> String {
+    let out = command.output().expect("run the tool");
+    assert!(
+        out.status.success(),
+        "{command:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 /// Simulates the quickstart into `dir` and checks it succeeded.
 #[allow(dead_code)] // not every test file simulates
 pub fn simulate_quickstart(dir: &std::path::Path, extra: &[&str]) {
