@@ -45,7 +45,7 @@ pub fn merge(tree: &mut Octree, grid: &LocalGrid, options: &MergeOptions) -> Mer
             options,
             stats: &mut stats,
         };
-        merger.recurse(Key([0, 0, 0]), 0);
+        merger.recurse(Key([0, 0, 0]), 0, None);
     }
     stats
 }
@@ -58,7 +58,7 @@ struct Merger<'a> {
 }
 
 impl Merger<'_> {
-    fn recurse(&mut self, key: Key, depth: u8) {
+    fn recurse(&mut self, key: Key, depth: u8, corners: Option<&mut CornerCache>) {
         self.stats.visited += 1;
         let centre = self.tree.center(&key, depth).coords;
         let half = self.tree.node_size(depth) * 0.5;
@@ -86,7 +86,20 @@ impl Merger<'_> {
             return;
         }
         if depth == DEPTH {
-            if let Some(p) = cell_occupancy(self.grid, &self.options.model, &centre, half, &bins) {
+            let corners = corners.expect("finest cells come with their parent's corner cache");
+            let model = &self.options.model;
+            let hit = surface_inside(self.grid, model, &centre, half, &bins);
+            let offset = corners.offset(&key);
+            let p = combine(model, hit, |i| {
+                let [x, y, z] = corner_offset(i);
+                corners.free(
+                    self.tree,
+                    self.grid,
+                    model,
+                    [offset[0] + x, offset[1] + y, offset[2] + z],
+                )
+            });
+            if let Some(p) = p {
                 let l = logit(p) as f32;
                 if l.abs() >= NEUTRAL {
                     self.tree.update(&key, l, self.options.clamp);
@@ -95,13 +108,86 @@ impl Merger<'_> {
             }
             return;
         }
+        // The eight finest children of a node share 27 corners.
+        let mut cache = (depth == DEPTH - 1).then(|| CornerCache::new(key));
         let bit = 15 - depth as u32;
         for child in 0..8u16 {
             let mut k = key;
             for (axis, kk) in k.0.iter_mut().enumerate() {
                 *kk |= ((child >> axis) & 1) << bit;
             }
-            self.recurse(k, depth + 1);
+            self.recurse(k, depth + 1, cache.as_mut());
+        }
+    }
+}
+
+/// The corner offsets (0 or 1 per axis) of corner `i`: bit 0 of `i` is x,
+/// bit 1 is y, bit 2 is z.
+#[inline]
+fn corner_offset(i: usize) -> [u16; 3] {
+    [(i & 1) as u16, (i >> 1 & 1) as u16, (i >> 2 & 1) as u16]
+}
+
+/// The corner values ([`corner_free`]) of the eight finest children of one
+/// node: its 3×3×3 lattice points, each evaluated at most once.
+struct CornerCache {
+    base: Key,
+    free: [f64; 27],
+}
+
+impl CornerCache {
+    fn new(base: Key) -> Self {
+        Self {
+            base,
+            free: [f64::NAN; 27],
+        }
+    }
+
+    /// A child's lower corner as lattice offsets from the base.
+    fn offset(&self, key: &Key) -> [u16; 3] {
+        std::array::from_fn(|a| key.0[a] - self.base.0[a])
+    }
+
+    fn free(&mut self, tree: &Octree, grid: &LocalGrid, model: &CellModel, at: [u16; 3]) -> f64 {
+        let slot = &mut self.free[(at[2] as usize * 3 + at[1] as usize) * 3 + at[0] as usize];
+        if slot.is_nan() {
+            *slot = corner_free(grid, model, &tree.lattice_point(&self.base, at).coords);
+        }
+        *slot
+    }
+}
+
+/// A finest cell as the cell model sees it: centre, half edge and corners
+/// (corner `i` as in [`corner_offset`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cell {
+    /// The cube's centre (scene frame).
+    pub centre: Vector3,
+    /// Half its edge.
+    pub half: f64,
+    /// Its eight corners.
+    pub corners: [Vector3; 8],
+}
+
+impl Cell {
+    /// The tree's finest cell `key`, with lattice corners as the merge uses.
+    pub fn of(tree: &Octree, key: &Key) -> Self {
+        Self {
+            centre: tree.center(key, DEPTH).coords,
+            half: tree.node_size(DEPTH) * 0.5,
+            corners: std::array::from_fn(|i| tree.lattice_point(key, corner_offset(i)).coords),
+        }
+    }
+
+    /// The cube `centre ± half`.
+    pub fn around(centre: Vector3, half: f64) -> Self {
+        Self {
+            centre,
+            half,
+            corners: std::array::from_fn(|i| {
+                let [x, y, z] = corner_offset(i).map(|o| if o == 1 { half } else { -half });
+                centre + Vector3::new(x, y, z)
+            }),
         }
     }
 }
@@ -128,12 +214,9 @@ fn any_crosses(
     false
 }
 
-/// `P(C occupied | viewpoint)` for the cube `centre ± half` (§5.4), from two
+/// `P(C occupied | viewpoint)` for the finest cell `cell` (§5.4), from two
 /// things the viewpoint says about C:
-/// - `H`, how surely a surface lies inside C: the maximum, over the beams whose
-///   centre line crosses C, of their chord's first-hit probability `P(a ≤ λ ≤ b)`
-///   (a cell no centre line crosses takes the beams of the bin holding its
-///   centre, with its whole range extent as the chord);
+/// - `H` ([`surface_inside`]), how surely a surface lies inside C;
 /// - `F`, the share of C seen in front of the surface: the mean over C's eight
 ///   corners of `P(λ > ρ)` against the nearest surface of the corner's bin.
 ///
@@ -141,10 +224,25 @@ fn any_crosses(
 pub fn cell_occupancy(
     grid: &LocalGrid,
     model: &CellModel,
+    cell: &Cell,
+    bins: &BinBox,
+) -> Option<f64> {
+    let hit = surface_inside(grid, model, &cell.centre, cell.half, bins);
+    combine(model, hit, |i| corner_free(grid, model, &cell.corners[i]))
+}
+
+/// `H` for the cube `centre ± half`: the maximum, over the beams whose centre
+/// line crosses C, of their chord's first-hit probability `P(a ≤ λ ≤ b)` (a
+/// cell no centre line crosses takes the beams of the bin holding its centre,
+/// with its whole range extent as the chord). The search stops once `H`
+/// reaches `p_hi`, where [`combine`] stops looking.
+pub fn surface_inside(
+    grid: &LocalGrid,
+    model: &CellModel,
     centre: &Vector3,
     half: f64,
     bins: &BinBox,
-) -> Option<f64> {
+) -> f64 {
     let max_range = grid.max_range;
     let inside = |beam, a: f64, b: f64| {
         model.split(beam, a, b, max_range).1 * origin_step(0.5 * (a + b), beam.sigma_origin)
@@ -163,33 +261,51 @@ pub fn cell_occupancy(
     let mut hit = 0.0f64;
     let mut crossed = false;
     let mut others = false;
-    for a in bins.azimuth.0..=bins.azimuth.1 {
-        for e in bins.elevation.0..=bins.elevation.1 {
-            let (beams, inverse) = grid.bin_beams(a, e);
-            if beams.is_empty() {
-                continue;
-            }
-            // The bin's bands (and its nearest surface's) span [near, far]:
-            // when that misses [lo, hi], none of its beams may hold it.
-            let bin = grid.bin_summary(a, e);
-            if bin.near > hi + margin || bin.far < lo - margin {
+    // One bin's beams into `hit`; true once `hit` reaches p_hi, where
+    // `combine` gives p_hi whatever else is found.
+    let mut visit = |a: usize, e: usize| {
+        let (beams, inverse) = grid.bin_beams(a, e);
+        if beams.is_empty() {
+            return false;
+        }
+        // The bin's bands (and its nearest surface's) span [near, far]:
+        // when that misses [lo, hi], none of its beams may hold it.
+        let bin = grid.bin_summary(a, e);
+        if bin.near > hi + margin || bin.far < lo - margin {
+            others = true;
+            return false;
+        }
+        for (beam, inv) in beams.iter().zip(inverse) {
+            if !may_hold(beam) {
                 others = true;
                 continue;
             }
-            for (beam, inv) in beams.iter().zip(inverse) {
-                if !may_hold(beam) {
-                    others = true;
-                    continue;
+            if let Some((t0, t1)) = ray_box(&grid.origin, inv, centre, half) {
+                crossed = true;
+                hit = hit.max(inside(beam, t0, t1));
+                if hit >= model.p_hi {
+                    return true;
                 }
-                if let Some((t0, t1)) = ray_box(&grid.origin, inv, centre, half) {
-                    crossed = true;
-                    hit = hit.max(inside(beam, t0, t1));
-                }
+            }
+        }
+        false
+    };
+    // The centre's bin first: a cell holding the surface usually gets its
+    // p_hi there. Visiting it again below changes nothing (max, flags).
+    if let Some((a, e)) = bins.centre {
+        if visit(a, e) {
+            return hit;
+        }
+    }
+    for a in bins.azimuth.0..=bins.azimuth.1 {
+        for e in bins.elevation.0..=bins.elevation.1 {
+            if visit(a, e) {
+                return hit;
             }
         }
     }
     if !crossed {
-        if let Some((a, e)) = grid.bin_of(centre) {
+        if let Some((a, e)) = bins.centre {
             let centre_beams = grid.bin_beams(a, e).0;
             // The fallback (no centre line crosses C) can only raise `hit`
             // through a beam that may hold the surface; decide whether it
@@ -203,34 +319,36 @@ pub fn cell_occupancy(
             }
         }
     }
-    combine(grid, model, centre, half, hit)
+    hit
 }
 
-/// The viewpoint's verdict on C from `hit` (H): with `F` the mean over C's
-/// eight corners of `P(λ > ρ)` against the nearest surface of the corner's
-/// bin, `view_occupancy(H, F)`; `p_hi` outright when H reaches it.
+/// The viewpoint's verdict on C from `hit` (H) and the free share of its
+/// corners (`corner_free(i)` for corner `i`, summed in corner order): with `F`
+/// their mean, `view_occupancy(H, F)`; `p_hi` outright when H reaches it.
 pub(crate) fn combine(
-    grid: &LocalGrid,
     model: &CellModel,
-    centre: &Vector3,
-    half: f64,
     hit: f64,
+    mut corner_free: impl FnMut(usize) -> f64,
 ) -> Option<f64> {
     if hit >= model.p_hi {
         // A surface surely inside: the share seen free changes nothing.
         return Some(model.p_hi);
     }
     let mut free = 0.0;
-    for corner in 0..8u8 {
-        let sign = |axis: u8| if corner >> axis & 1 == 1 { half } else { -half };
-        let point = centre + Vector3::new(sign(0), sign(1), sign(2));
-        let Some((a, e)) = grid.bin_of(&point) else {
-            continue;
-        };
-        if let Some(surface) = grid.bin_surface(a, e) {
-            free += model.free_at(surface, (point - grid.origin).norm(), grid.max_range);
-        }
+    for corner in 0..8 {
+        free += corner_free(corner);
     }
     free /= 8.0;
     (hit > 0.0 || free > 0.0).then(|| model.view_occupancy(hit, free))
+}
+
+/// `P(λ > ρ)` at scene point `point` against the nearest surface of its bin
+/// (0 outside the grid or in a bin without a surface).
+pub(crate) fn corner_free(grid: &LocalGrid, model: &CellModel, point: &Vector3) -> f64 {
+    let Some((a, e)) = grid.bin_of(point) else {
+        return 0.0;
+    };
+    grid.bin_surface(a, e).map_or(0.0, |surface| {
+        model.free_at(surface, (point - grid.origin).norm(), grid.max_range)
+    })
 }

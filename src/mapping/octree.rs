@@ -272,6 +272,17 @@ impl Octree {
         Point3::new(c(key.0[0]), c(key.0[1]), c(key.0[2]))
     }
 
+    /// The lattice point `key + offset` (cell corners): offset 0 is the
+    /// finest cell's lower corner, 1 its upper one along that axis. Computed
+    /// from integers, so the cells sharing a corner agree on it to the bit.
+    #[inline]
+    pub fn lattice_point(&self, key: &Key, offset: [u16; 3]) -> Point3 {
+        let c = |axis: usize| {
+            (key.0[axis] as i64 + offset[axis] as i64 - CENTER) as f64 * self.resolution
+        };
+        Point3::new(c(0), c(1), c(2))
+    }
+
     fn alloc_block(&mut self, fill: Node) -> u32 {
         if let Some(block) = self.free_blocks.pop() {
             self.nodes[block as usize..block as usize + 8].fill(fill);

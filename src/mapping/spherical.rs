@@ -108,6 +108,8 @@ pub struct BinBox {
     pub range: (f64, f64),
     /// Whether the ball reaches outside the grid's field of view.
     pub outside: bool,
+    /// The bin holding the ball's centre, if any (as [`LocalGrid::bin_of`]).
+    pub centre: Option<(usize, usize)>,
 }
 
 /// A beam's end as the modeller knows it, in the scene frame.
@@ -403,12 +405,19 @@ impl LocalGrid {
             elevation: (e0, e1),
             range: ((dist - radius).max(0.0), dist + radius),
             outside: a_out || e_out,
+            centre: self.bin_at(az, el),
         })
     }
 
     /// The angular bin holding scene point `p`, if any.
     pub fn bin_of(&self, p: &Vector3) -> Option<(usize, usize)> {
         let (_, az, el) = spherical(&(self.scene_from_grid.transpose() * (p - self.origin)));
+        self.bin_at(az, el)
+    }
+
+    /// The bin holding direction (`az`, `el`) (grid frame), if any.
+    #[inline]
+    fn bin_at(&self, az: f64, el: f64) -> Option<(usize, usize)> {
         let (a, e) = (self.azimuth.index(az), self.elevation.index(el));
         (a >= 0 && e >= 0 && a < self.azimuth.count as isize && e < self.elevation.count as isize)
             .then_some((a as usize, e as usize))
