@@ -2,7 +2,8 @@
 //! merge (unscented, jacobian, blind) and with the OctoMap-style ray update,
 //! at 2 cm, one core. Printed: beams/s, each method's ratio to the ray update
 //! measured in the same run, and bytes per leaf beside OctoMap's layout
-//! (16 bytes per node + 64 per inner node). The side-by-side run against
+//! (16 bytes per node + 64 per inner node); then one map built on two
+//! cores against one (same tree asserted). The side-by-side run against
 //! OctoMap itself is `bash benches/octomap/compare.sh`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -47,18 +48,22 @@ fn bench(c: &mut Criterion) {
     }
     group.finish();
 
-    let seconds = |method| {
+    let build = |pool: &rayon::ThreadPool, method| {
+        pool.install(|| {
+            build_map(&view, &run.scans, method, RESOLUTION, &Vector3::zeros())
+                .expect("the quickstart maps")
+        })
+    };
+    let seconds_on = |pool: &rayon::ThreadPool, method| {
         let start = Instant::now();
         let mut reps = 0;
         while reps < 3 || start.elapsed() < Duration::from_secs(1) {
-            black_box(pool.install(|| {
-                build_map(&view, &run.scans, method, RESOLUTION, &Vector3::zeros())
-                    .expect("the quickstart maps")
-            }));
+            black_box(build(pool, method));
             reps += 1;
         }
         start.elapsed().as_secs_f64() / reps as f64
     };
+    let seconds = |method| seconds_on(&pool, method);
     let baseline = seconds(Method::RayUpdate);
     println!("\ninsertion of {beams} beams at {RESOLUTION} m, one core (ratio: beams/s against the ray update):");
     for method in Method::ALL {
@@ -77,6 +82,26 @@ fn bench(c: &mut Criterion) {
             baseline / s,
             stats.bytes as f64 / stats.leaves as f64,
             (16 * stats.nodes + 64 * stats.inner) as f64 / stats.leaves as f64
+        );
+    }
+
+    let two = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool");
+    println!("\none map on two cores (ratio: time on one core / time on two):");
+    for method in [Method::RayUpdate, Method::Unscented] {
+        assert!(
+            build(&pool, method) == build(&two, method),
+            "{method:?}: two cores built a different tree"
+        );
+        let (one_core, two_cores) = (seconds_on(&pool, method), seconds_on(&two, method));
+        println!(
+            "  {:<11} {:6.3} s on one core, {:6.3} s on two: {:5.2}x",
+            method.as_str(),
+            one_core,
+            two_cores,
+            one_core / two_cores
         );
     }
 }

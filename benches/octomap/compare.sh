@@ -8,7 +8,9 @@
 # 700 000 rays, up to 3 m), inserts them with OctoMap's insertPointCloud (the
 # program benches/octomap/insert.cpp) and with sigmap's ray update and OPDF
 # merge (unscented), at each resolution (default 0.02 0.05), and prints rays/s,
-# the ratios to OctoMap, and bytes per leaf.
+# the ratios to OctoMap, and bytes per leaf; then each sigmap method again on
+# two cores (--threads 2), with its speed-up over its own one-core run and a
+# check that the map is the same file.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 experiment=${1:-experiments/octomap_bench.toml}
@@ -34,10 +36,19 @@ for res in $resolutions; do
   printf '%-6s %-12s %12.3f %9s %14.1f\n' "$res" octomap "$o_rate" 1.00x "$o_leaf"
   for method in ray_update unscented; do
     taskset -c 0 "$sigmap" map "$experiment" --method "$method" --resolution "$res" --threads 1 \
-      --out "$work/$method.bt" 2> "$work/$method.log"
+      --out "$work/$method.ot" 2> "$work/$method.log"
     r=$(rate < "$work/$method.log")
     printf '%-6s %-12s %12.3f %8.2fx %14.1f\n' "$res" "$method" "$r" "$(awk -v a="$r" -v b="$o_rate" 'BEGIN{print a/b}')" \
       "$(per_leaf < "$work/$method.log")"
+  done
+  for method in ray_update unscented; do
+    "$sigmap" map "$experiment" --method "$method" --resolution "$res" --threads 2 \
+      --out "$work/$method.2.ot" 2> "$work/$method.2.log"
+    r1=$(rate < "$work/$method.log")
+    r2=$(rate < "$work/$method.2.log")
+    same=$(cmp -s "$work/$method.ot" "$work/$method.2.ot" && echo "same map" || echo "MAP DIFFERS")
+    printf '%-6s %-12s %12.3f %8.2fx  two cores: %.2fx its one-core rate, %s\n' "$res" "$method" "$r2" \
+      "$(awk -v a="$r2" -v b="$o_rate" 'BEGIN{print a/b}')" "$(awk -v a="$r2" -v b="$r1" 'BEGIN{print a/b}')" "$same"
   done
   if command -v compare_octrees >/dev/null; then
     echo "  ray_update vs OctoMap: $(compare_octrees "$work/ray.ot" "$work/octomap.ot" 2>&1 | grep KLD)"

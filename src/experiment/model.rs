@@ -250,27 +250,33 @@ pub fn build_map_measured(
     offset: &Vector3,
 ) -> Result<Octree> {
     let mut tree = Octree::new(resolution);
+    let max_range = view.scanner.max_range;
+    if method == Method::RayUpdate {
+        let mut updater = RayUpdater::new(view.settings.update);
+        for scan in scans {
+            let (mut origin, mut hits, misses) = ray_inputs(view, scan);
+            origin += offset;
+            hits.iter_mut().for_each(|h| *h += offset);
+            updater.insert_scan(&mut tree, &origin, &hits, &misses, max_range);
+        }
+        tree.shrink_to_fit();
+        return Ok(tree);
+    }
     let raster = Raster {
         horizontal: &view.scanner.horizontal_angles,
         vertical: &view.scanner.vertical_angles,
     };
-    let max_range = view.scanner.max_range;
     let options = view.settings.merge_options();
-    let mut updater = RayUpdater::new(view.settings.update);
-    for (i, scan) in scans.iter().enumerate() {
+    // Scan i's local grid: its beams propagated and binned.
+    let grid_of = |i: usize| {
+        let scan = &scans[i];
         let full_chain = scan_chain(scan);
         let chain = if method == Method::Correlated {
             split_chain(&full_chain, false)
         } else {
             full_chain
         };
-        let Some(propagator) = propagator(method, &chain) else {
-            let (mut origin, mut hits, misses) = ray_inputs(view, scan);
-            origin += offset;
-            hits.iter_mut().for_each(|h| *h += offset);
-            updater.insert_scan(&mut tree, &origin, &hits, &misses, max_range);
-            continue;
-        };
+        let propagator = propagator(method, &chain).expect("an OPDF method has a propagator");
         let origin = propagator.origin();
         let mut beams = beam_ends(view, scan, &measured[i], propagator.as_ref());
         for beam in &mut beams {
@@ -279,15 +285,26 @@ pub fn build_map_measured(
             }
         }
         let rotation = chain.nominal().rotation.to_rotation_matrix().into_inner();
-        let grid = local_grid(
+        local_grid(
             &(origin.mean + offset),
             &origin.covariance,
             &rotation,
             raster,
             &beams,
             max_range,
+        )
+    };
+    // A pipeline: the next scan's grid is built while this one is merged.
+    let mut next = (!scans.is_empty()).then(|| grid_of(0));
+    for i in 0..scans.len() {
+        let grid = next.take().expect("a grid per scan");
+        let ((), following) = rayon::join(
+            || {
+                merge(&mut tree, &grid, &options);
+            },
+            || (i + 1 < scans.len()).then(|| grid_of(i + 1)),
         );
-        merge(&mut tree, &grid, &options);
+        next = following;
     }
     if method == Method::Correlated {
         let chains: Vec<_> = scans.iter().map(scan_chain).collect();

@@ -10,6 +10,7 @@ use super::octree::{Clamp, Key, Octree, DEPTH};
 use super::opdf::logit;
 use super::spherical::{BinBox, LocalGrid};
 use crate::geometry::Vector3;
+use rayon::prelude::*;
 
 /// Log-odds smaller than this are not written: the cell stays as it was
 /// (absent means unknown), as occluded space does in OctoMap.
@@ -35,31 +36,120 @@ pub struct MergeStats {
     pub fine_updates: usize,
 }
 
-/// Fuses `grid` into `tree`.
+/// The smallest edge (m) of the nodes the merge's search is split at: one
+/// task per node, many tasks, each worth one.
+const TASK_EDGE: f64 = 0.1;
+
+/// The depth of the task nodes at `resolution`: the deepest whose edge
+/// reaches [`TASK_EDGE`], above the finest level.
+fn task_depth(resolution: f64) -> u8 {
+    let mut depth = DEPTH - 1;
+    while depth > 1 && resolution * f64::from(1u32 << (DEPTH - depth)) < TASK_EDGE {
+        depth -= 1;
+    }
+    depth
+}
+
+/// Fuses `grid` into `tree`. The search runs on the current rayon pool, one
+/// task per node of [`task_depth`]; its updates are applied afterwards in
+/// depth-first order, so the tree is the same whatever the thread count.
 pub fn merge(tree: &mut Octree, grid: &LocalGrid, options: &MergeOptions) -> MergeStats {
-    let mut stats = MergeStats::default();
-    if grid.beam_count() > 0 {
-        let mut merger = Merger {
-            tree,
-            grid,
-            options,
-            stats: &mut stats,
-        };
-        merger.recurse(Key([0, 0, 0]), 0, None);
+    if grid.beam_count() == 0 {
+        return MergeStats::default();
+    }
+    let planner = Planner {
+        tree,
+        grid,
+        options,
+        task_depth: task_depth(tree.resolution()),
+    };
+    let mut skeleton = Plan::default();
+    planner.search(Key([0, 0, 0]), 0, None, &mut skeleton, true);
+    let tasks: Vec<Plan> = skeleton
+        .tasks
+        .par_iter()
+        .map(|&key| {
+            let mut plan = Plan::default();
+            planner.search(key, planner.task_depth, None, &mut plan, false);
+            plan
+        })
+        .collect();
+    let mut stats = skeleton.stats;
+    let mut tasks = tasks.into_iter();
+    for update in &skeleton.updates {
+        match *update {
+            Update::Task => {
+                let task = tasks.next().expect("one plan per task");
+                stats.add(&task.stats);
+                task.updates
+                    .iter()
+                    .for_each(|u| u.apply(tree, options.clamp));
+            }
+            ref u => u.apply(tree, options.clamp),
+        }
     }
     stats
 }
 
-struct Merger<'a> {
-    tree: &'a mut Octree,
-    grid: &'a LocalGrid,
-    options: &'a MergeOptions,
-    stats: &'a mut MergeStats,
+impl MergeStats {
+    fn add(&mut self, other: &MergeStats) {
+        self.visited += other.visited;
+        self.coarse_updates += other.coarse_updates;
+        self.fine_updates += other.fine_updates;
+    }
 }
 
-impl Merger<'_> {
-    fn recurse(&mut self, key: Key, depth: u8, corners: Option<&mut CornerCache>) {
-        self.stats.visited += 1;
+/// One change the merge makes to the tree, in search order.
+#[derive(Clone, Copy, Debug)]
+enum Update {
+    /// Add `delta` to every cell of the node at `depth` containing `key`.
+    Region { key: Key, depth: u8, delta: f32 },
+    /// Add `delta` to the finest cell `key`.
+    Cell { key: Key, delta: f32 },
+    /// The updates of the next task, in its place.
+    Task,
+}
+
+impl Update {
+    fn apply(&self, tree: &mut Octree, clamp: Clamp) {
+        match *self {
+            Update::Region { key, depth, delta } => tree.update_region(&key, depth, delta, clamp),
+            Update::Cell { key, delta } => tree.update(&key, delta, clamp),
+            Update::Task => unreachable!("tasks are replaced by their updates"),
+        }
+    }
+}
+
+/// What a search found: its updates in depth-first order and, above the
+/// task depth, the nodes left to tasks.
+#[derive(Default)]
+struct Plan {
+    updates: Vec<Update>,
+    tasks: Vec<Key>,
+    stats: MergeStats,
+}
+
+/// The read-only search of the merge: which cells the grid informs and how.
+struct Planner<'a> {
+    tree: &'a Octree,
+    grid: &'a LocalGrid,
+    options: &'a MergeOptions,
+    task_depth: u8,
+}
+
+impl Planner<'_> {
+    /// Searches the node at `depth` containing `key`; with `split`, leaves
+    /// the nodes at the task depth to tasks.
+    fn search(
+        &self,
+        key: Key,
+        depth: u8,
+        corners: Option<&mut CornerCache>,
+        plan: &mut Plan,
+        split: bool,
+    ) {
+        let stats = &mut plan.stats;
+        stats.visited += 1;
         let centre = self.tree.center(&key, depth).coords;
         let half = self.tree.node_size(depth) * 0.5;
         // The cube's circumscribed ball: a conservative superset of its bins.
@@ -75,13 +165,12 @@ impl Merger<'_> {
             // Every beam crosses the whole cell well before its surface band
             // (and its bin's nearest surface) and past the origin step: H = 0
             // and F = 1 in every finest cell, so the model gives p_lo.
-            let free = self.options.model.free_log_odds();
-            self.tree
-                .update_region(&key, depth, free, self.options.clamp);
+            let delta = self.options.model.free_log_odds();
+            plan.updates.push(Update::Region { key, depth, delta });
             if depth == DEPTH {
-                self.stats.fine_updates += 1;
+                stats.fine_updates += 1;
             } else {
-                self.stats.coarse_updates += 1;
+                stats.coarse_updates += 1;
             }
             return;
         }
@@ -100,10 +189,10 @@ impl Merger<'_> {
                 )
             });
             if let Some(p) = p {
-                let l = logit(p) as f32;
-                if l.abs() >= NEUTRAL {
-                    self.tree.update(&key, l, self.options.clamp);
-                    self.stats.fine_updates += 1;
+                let delta = logit(p) as f32;
+                if delta.abs() >= NEUTRAL {
+                    plan.updates.push(Update::Cell { key, delta });
+                    stats.fine_updates += 1;
                 }
             }
             return;
@@ -116,7 +205,12 @@ impl Merger<'_> {
             for (axis, kk) in k.0.iter_mut().enumerate() {
                 *kk |= ((child >> axis) & 1) << bit;
             }
-            self.recurse(k, depth + 1, cache.as_mut());
+            if split && depth + 1 == self.task_depth {
+                plan.tasks.push(k);
+                plan.updates.push(Update::Task);
+            } else {
+                self.search(k, depth + 1, cache.as_mut(), plan, split);
+            }
         }
     }
 }

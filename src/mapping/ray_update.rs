@@ -6,7 +6,9 @@
 
 use super::octree::{Clamp, Key, Octree, LOG_ODDS_HIT, LOG_ODDS_MISS};
 use crate::geometry::{Point3, Vector3};
+use rayon::prelude::*;
 use rustc_hash::FxHashSet;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 /// The cells a ray from `origin` to `end` traverses, the end cell excluded
 /// (OctoMap's `computeRayKeys`). Appends to `out`; false if either end lies
@@ -78,16 +80,20 @@ fn walk_ray(
 
 /// A set of cells of one scan: a bitmap over the scan's bounding box of keys
 /// when it is small enough (the usual case), a hash set otherwise; either way
-/// it also lists the Morton codes of its cells.
+/// it also lists the Morton codes of its cells. The bitmap's words are atomic
+/// so that rays can be walked in parallel.
 #[derive(Default)]
 struct CellSet {
     min: [u16; 3],
     dims: [usize; 3],
-    bits: Vec<u64>,
+    bits: Vec<AtomicU64>,
     hashed: FxHashSet<u64>,
     dense: bool,
     codes: Vec<u64>,
 }
+
+/// Rays walked per parallel task.
+const RAYS_PER_TASK: usize = 2048;
 
 /// Largest bounding box (cells) kept as a bitmap: 2^27 bits, 16 MiB.
 const DENSE_LIMIT: usize = 1 << 27;
@@ -102,7 +108,8 @@ impl CellSet {
         self.hashed.clear();
         if self.dense {
             self.bits.clear();
-            self.bits.resize(volume.div_ceil(64), 0);
+            self.bits
+                .resize_with(volume.div_ceil(64), AtomicU64::default);
         }
     }
 
@@ -124,11 +131,16 @@ impl CellSet {
     /// Dense sets: inserts the cell at bitmap index `i` (which is `key`'s).
     #[inline]
     fn insert_at(&mut self, i: usize, key: &Key) {
-        let (word, bit) = (i / 64, 1u64 << (i % 64));
-        if self.bits[word] & bit == 0 {
-            self.bits[word] |= bit;
+        if self.mark(i) {
             self.codes.push(key.morton());
         }
+    }
+
+    /// Dense sets: sets bit `i`; true when it was not set (by any thread).
+    #[inline]
+    fn mark(&self, i: usize) -> bool {
+        let (word, bit) = (&self.bits[i / 64], 1u64 << (i % 64));
+        word.load(Relaxed) & bit == 0 && word.fetch_or(bit, Relaxed) & bit == 0
     }
 
     /// Bitmap index change of one step along `axis`.
@@ -145,7 +157,7 @@ impl CellSet {
     fn contains(&self, key: &Key) -> bool {
         if self.dense {
             let i = self.index(key);
-            self.bits[i / 64] & (1u64 << (i % 64)) != 0
+            self.bits[i / 64].load(Relaxed) & (1u64 << (i % 64)) != 0
         } else {
             self.hashed.contains(&key.packed())
         }
@@ -241,24 +253,41 @@ impl RayUpdater {
             self.free.stride(1),
             self.free.stride(2),
         ];
-        for (end, hit) in &self.ends {
-            let free = &mut self.free;
-            let walked = if free.dense {
-                // Step the bitmap index along with the DDA.
-                let mut index = 0isize;
-                walk_ray(tree, origin, end, |k, moved| {
-                    index = match moved {
-                        None => free.index(&k) as isize,
-                        Some((axis, step)) => index + strides[axis] * step as isize,
-                    };
-                    free.insert_at(index as usize, &k);
+        if self.free.dense {
+            // Rays in parallel chunks; a cell's code goes to the chunk that
+            // set its bit first, so the set (and its sorted list) is the same
+            // whatever the thread count.
+            let free = &self.free;
+            let found: Vec<Vec<u64>> = self
+                .ends
+                .par_chunks(RAYS_PER_TASK)
+                .map(|chunk| {
+                    let mut codes = Vec::new();
+                    for (end, _) in chunk {
+                        // Step the bitmap index along with the DDA.
+                        let mut index = 0isize;
+                        walk_ray(tree, origin, end, |k, moved| {
+                            index = match moved {
+                                None => free.index(&k) as isize,
+                                Some((axis, step)) => index + strides[axis] * step as isize,
+                            };
+                            if free.mark(index as usize) {
+                                codes.push(k.morton());
+                            }
+                        });
+                    }
+                    codes
                 })
-            } else {
-                walk_ray(tree, origin, end, |k, _| free.insert(&k))
-            };
-            if !walked {
-                continue;
+                .collect();
+            self.free.codes.extend(found.into_iter().flatten());
+        } else {
+            for (end, _) in &self.ends {
+                let free = &mut self.free;
+                walk_ray(tree, origin, end, |k, _| free.insert(&k));
             }
+        }
+        // A ray is walked when both its ends lie in the tree (the origin does).
+        for (end, hit) in &self.ends {
             if *hit {
                 if let Some(k) = tree.key(end) {
                     self.occupied.insert(&k);
