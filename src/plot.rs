@@ -76,17 +76,23 @@ fn label(v: f64, log: bool) -> String {
 
 /// Writes side-by-side panels into an SVG file (staged, then renamed).
 pub fn panels(path: &Path, panels: &[Panel]) -> Result<()> {
+    panel_grid(path, panels.len(), panels)
+}
+
+/// Writes panels in rows of `columns` into an SVG file (staged, then renamed).
+pub fn panel_grid(path: &Path, columns: usize, panels: &[Panel]) -> Result<()> {
     let mut svg = String::new();
-    draw_panels(&mut svg, path, panels)?;
+    draw_panels(&mut svg, path, columns.max(1), panels)?;
     crate::files::write_file(path, svg.as_bytes())
 }
 
-fn draw_panels(svg: &mut String, path: &Path, panels: &[Panel]) -> Result<()> {
-    let width = 560 * panels.len().max(1) as u32;
-    let root = SVGBackend::with_string(svg, (width, 420)).into_drawing_area();
+fn draw_panels(svg: &mut String, path: &Path, columns: usize, panels: &[Panel]) -> Result<()> {
+    let rows = panels.len().div_ceil(columns).max(1);
+    let size = (560 * columns as u32, 420 * rows as u32);
+    let root = SVGBackend::with_string(svg, size).into_drawing_area();
     let err = |e: &dyn std::fmt::Display| Error::input(path, format!("cannot draw the chart: {e}"));
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    let areas = root.split_evenly((1, panels.len().max(1)));
+    let areas = root.split_evenly((rows, columns));
     for (area, panel) in areas.iter().zip(panels) {
         let lines: Vec<Vec<(f64, f64)>> = panel
             .series

@@ -34,7 +34,11 @@ fn a_map_is_the_same_on_one_thread_and_on_three() {
             };
             let (a, b) = (build(&one), build(&three));
             let (la, lb) = (a.leaves(), b.leaves());
-            assert!(la.len() > 1000, "{method:?} at {resolution}: {} leaves", la.len());
+            assert!(
+                la.len() > 1000,
+                "{method:?} at {resolution}: {} leaves",
+                la.len()
+            );
             let differ = la.iter().zip(&lb).filter(|(x, y)| x != y).count();
             assert!(
                 la.len() == lb.len() && differ == 0,
