@@ -5,13 +5,15 @@
 #
 #   resolution 5 mm – 5 cm (with OctoMap's insertion of the same rays),
 #   viewpoints 6 – 200, scene triangles 4 k – 1 M (a tessellated sphere on the
-#   table), workspace volume 0.5 – 100 m³ (ground truth), beams per scan
-#   (angular step 2° – 0.125°).
+#   table), workspace volume 0.5 – 100 m³ (ground truth and a whole one-seed
+#   `sigmap run`), beams per scan (angular step 2° – 0.125°).
 #
 #   bash benches/scaling.sh [OUT_DIR]     (default results/scaling; ~10 min)
 #
-# Writes OUT_DIR/scaling.csv (axis, x, measure, seconds, peak_mb) and draws
-# OUT_DIR/scaling.svg (time and peak memory against each axis, log-log).
+# Writes OUT_DIR/scaling.csv (axis, x, measure, seconds, peak_mb: the peak
+# resident memory of the whole process) and draws OUT_DIR/scaling.svg (time
+# and peak memory against each axis, log-log). Map times are sigmap's own
+# (`sigmap map`, one core); "simulate" is that command's wall time less them.
 # Needs python3 and GNU time (/usr/bin/time); OctoMap's curve needs g++ and
 # liboctomap-dev and is left out without them.
 set -euo pipefail
@@ -55,7 +57,7 @@ map() {
     fi
   done
   if [[ -n $octomap && $axis == resolution ]]; then
-    timed "$work/olog" taskset -c 0 "$octomap" "$work/rays.bin" "$res"
+    /usr/bin/time -f "%e %M" -o "$work/time" taskset -c 0 "$octomap" "$work/rays.bin" "$res" > "$work/olog"
     read -r wall peak < "$work/time"
     record "$axis" "$x" "OctoMap insert" "$(awk '{print $5}' "$work/olog")" "$peak"
   fi
@@ -82,6 +84,10 @@ for v in 0.5 2 10 50 100; do
     --resolution 0.01 --out "$work/truth.bt"
   read -r wall peak < "$work/time"
   record workspace "$v" "ground truth" "$wall" "$peak"
+  # The whole run (one seed, both methods): truth, observable mask, maps, scores.
+  timed "$work/log" "$sigmap" run "$exp" --out "$work/run" --fresh --threads 1 --quiet
+  read -r wall peak < "$work/time"
+  record workspace "$v" "sigmap run" "$wall" "$peak"
   map workspace "$v" "$exp"
 done
 for step in 2 1 0.5 0.25 0.125; do

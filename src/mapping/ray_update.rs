@@ -14,25 +14,21 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 /// (OctoMap's `computeRayKeys`). Appends to `out`; false if either end lies
 /// outside the tree.
 pub fn ray_keys(tree: &Octree, origin: &Point3, end: &Point3, out: &mut Vec<Key>) -> bool {
-    walk_ray(tree, origin, end, |k, _| out.push(k))
+    walk_ray(tree, origin, end, &mut |k, _| out.push(Key::unpack(k)))
 }
 
 /// The DDA behind [`ray_keys`]: calls `visit(key, (axis, step))` for each
-/// traversed cell, with the move that reached it (`None` for the first).
+/// traversed cell ([`Key::packed`]: a key built in registers, not through
+/// memory), with the move that reached it (`None` for the first).
 #[inline]
-fn walk_ray(
-    tree: &Octree,
-    origin: &Point3,
-    end: &Point3,
-    mut visit: impl FnMut(Key, Option<(usize, i32)>),
-) -> bool {
+fn walk_ray(tree: &Octree, origin: &Point3, end: &Point3, visit: &mut impl VisitCell) -> bool {
     let (Some(start), Some(stop)) = (tree.key(origin), tree.key(end)) else {
         return false;
     };
     if start == stop {
         return true;
     }
-    visit(start, None);
+    visit.visit(start.packed(), None);
     let diff = end - origin;
     let length = diff.norm();
     let dir = diff / length;
@@ -52,29 +48,78 @@ fn walk_ray(
             t_delta[i] = res / dir[i].abs();
         }
     }
-    let mut current = start.0;
+    // The walk's state in scalars (registers): indexing arrays by the axis
+    // taken would send every step through memory (store-to-load stalls).
+    let [mut x, mut y, mut z] = start.0;
+    let [mut tx, mut ty, mut tz] = t_max;
+    let [sx, sy, sz] = step.map(|s| s as u16);
     loop {
-        let dim = if t_max[0] < t_max[1] {
-            if t_max[0] < t_max[2] {
+        // OctoMap's choice: x if before y and z, else z; y if before z, else z.
+        let dim = if tx < ty {
+            if tx < tz {
+                x = x.wrapping_add(sx);
+                tx += t_delta[0];
                 0
             } else {
+                z = z.wrapping_add(sz);
+                tz += t_delta[2];
                 2
             }
-        } else if t_max[1] < t_max[2] {
+        } else if ty < tz {
+            y = y.wrapping_add(sy);
+            ty += t_delta[1];
             1
         } else {
+            z = z.wrapping_add(sz);
+            tz += t_delta[2];
             2
         };
-        current[dim] = (current[dim] as i32 + step[dim]) as u16;
-        t_max[dim] += t_delta[dim];
-        if current == stop.0 {
+        if [x, y, z] == stop.0 {
             return true;
         }
-        // Past the end point: numerical error; stop.
-        if t_max[0].min(t_max[1]).min(t_max[2]) > length {
+        // Past the end point: numerical error; stop. (The smallest crossing
+        // beyond `length`; no t is NaN, so no `f64::min` needed.)
+        if (tx > length) & (ty > length) & (tz > length) {
             return true;
         }
-        visit(Key(current), Some((dim, step[dim])));
+        let packed = x as u64 | (y as u64) << 16 | (z as u64) << 32;
+        visit.visit(packed, Some((dim, step[dim])));
+    }
+}
+
+/// What [`walk_ray`] calls for each cell: the packed key and the move that
+/// reached it.
+trait VisitCell {
+    fn visit(&mut self, key: u64, moved: Option<(usize, i32)>);
+}
+
+impl<F: FnMut(u64, Option<(usize, i32)>)> VisitCell for F {
+    #[inline]
+    fn visit(&mut self, key: u64, moved: Option<(usize, i32)>) {
+        self(key, moved)
+    }
+}
+
+/// The ray update's visitor on a dense set: steps the bitmap index along
+/// with the walk and lists the cells it is first to mark. Always inlined
+/// into the walk, so the walk's state stays in registers.
+struct MarkDense<'a> {
+    set: &'a CellSet,
+    strides: [isize; 3],
+    index: isize,
+    codes: &'a mut Vec<u64>,
+}
+
+impl VisitCell for MarkDense<'_> {
+    #[inline(always)]
+    fn visit(&mut self, key: u64, moved: Option<(usize, i32)>) {
+        self.index = match moved {
+            None => self.set.index(&Key::unpack(key)) as isize,
+            Some((axis, step)) => self.index + self.strides[axis] * step as isize,
+        };
+        if self.set.mark(self.index as usize) {
+            self.codes.push(Key::unpack(key).morton());
+        }
     }
 }
 
@@ -263,18 +308,14 @@ impl RayUpdater {
                 .par_chunks(RAYS_PER_TASK)
                 .map(|chunk| {
                     let mut codes = Vec::new();
+                    let mut visitor = MarkDense {
+                        set: free,
+                        strides,
+                        index: 0,
+                        codes: &mut codes,
+                    };
                     for (end, _) in chunk {
-                        // Step the bitmap index along with the DDA.
-                        let mut index = 0isize;
-                        walk_ray(tree, origin, end, |k, moved| {
-                            index = match moved {
-                                None => free.index(&k) as isize,
-                                Some((axis, step)) => index + strides[axis] * step as isize,
-                            };
-                            if free.mark(index as usize) {
-                                codes.push(k.morton());
-                            }
-                        });
+                        walk_ray(tree, origin, end, &mut visitor);
                     }
                     codes
                 })
@@ -283,7 +324,7 @@ impl RayUpdater {
         } else {
             for (end, _) in &self.ends {
                 let free = &mut self.free;
-                walk_ray(tree, origin, end, |k, _| free.insert(&k));
+                walk_ray(tree, origin, end, &mut |k, _| free.insert(&Key::unpack(k)));
             }
         }
         // A ray is walked when both its ends lie in the tree (the origin does).
