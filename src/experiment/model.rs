@@ -252,12 +252,30 @@ pub fn build_map_measured(
     let mut tree = Octree::new(resolution);
     let max_range = view.scanner.max_range;
     if method == Method::RayUpdate {
-        let mut updater = RayUpdater::new(view.settings.update);
-        for scan in scans {
+        // A pipeline of two updaters: scan i + 1's cells are found (on the
+        // tree's geometry alone) while scan i's are applied.
+        let geometry = Octree::new(resolution);
+        let find = |updater: &mut RayUpdater, scan: &Scan| {
             let (mut origin, mut hits, misses) = ray_inputs(view, scan);
             origin += offset;
             hits.iter_mut().for_each(|h| *h += offset);
-            updater.insert_scan(&mut tree, &origin, &hits, &misses, max_range);
+            updater.find_cells(&geometry, &origin, &hits, &misses, max_range);
+        };
+        let mut current = RayUpdater::new(view.settings.update);
+        let mut next = RayUpdater::new(view.settings.update);
+        if let Some(first) = scans.first() {
+            find(&mut current, first);
+        }
+        for i in 0..scans.len() {
+            rayon::join(
+                || current.apply(&mut tree),
+                || {
+                    if let Some(scan) = scans.get(i + 1) {
+                        find(&mut next, scan);
+                    }
+                },
+            );
+            std::mem::swap(&mut current, &mut next);
         }
         tree.shrink_to_fit();
         return Ok(tree);

@@ -258,7 +258,8 @@ impl RayUpdater {
     /// Inserts one scan: `hits` are measured end points; `misses` are the
     /// directions (unit) of beams that returned nothing, which carve free
     /// space up to `max_range`. Hits farther than `max_range` are truncated
-    /// and only carve, as OctoMap does.
+    /// and only carve, as OctoMap does. [`RayUpdater::find_cells`] then
+    /// [`RayUpdater::apply`].
     pub fn insert_scan(
         &mut self,
         tree: &mut Octree,
@@ -267,6 +268,25 @@ impl RayUpdater {
         misses: &[Vector3],
         max_range: f64,
     ) {
+        self.find_cells(tree, origin, hits, misses, max_range);
+        self.apply(tree);
+    }
+
+    /// The first half of [`RayUpdater::insert_scan`]: finds the scan's free
+    /// and occupied cells (rays walked in parallel), reading only the
+    /// geometry of `tree` (its resolution), so a pipeline can find the next
+    /// scan's cells while this scan's are applied.
+    pub fn find_cells(
+        &mut self,
+        tree: &Octree,
+        origin: &Point3,
+        hits: &[Point3],
+        misses: &[Vector3],
+        max_range: f64,
+    ) {
+        // Nothing of the previous scan may be applied again.
+        self.free.codes.clear();
+        self.occupied.codes.clear();
         self.ends.clear();
         for p in hits {
             let d = p - origin;
@@ -340,10 +360,15 @@ impl RayUpdater {
         self.free
             .codes
             .retain(|c| !occupied.contains(&Key::from_morton(*c)));
-        self.free.codes.sort_unstable();
+        self.free.codes.par_sort_unstable();
+        self.occupied.codes.sort_unstable();
+    }
+
+    /// The second half of [`RayUpdater::insert_scan`]: the cells found by
+    /// the last [`RayUpdater::find_cells`] updated, free then occupied.
+    pub fn apply(&self, tree: &mut Octree) {
         let rule = self.rule;
         tree.update_sorted(&self.free.codes, rule.miss, rule.clamp);
-        self.occupied.codes.sort_unstable();
         tree.update_sorted(&self.occupied.codes, rule.hit, rule.clamp);
     }
 }
