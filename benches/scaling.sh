@@ -35,7 +35,7 @@ fi
 csv="$work/scaling.csv"
 echo "axis,x,measure,seconds,peak_mb" > "$csv"
 # measure AXIS X MEASURE SECONDS PEAK_KB
-record() { echo "$1,$2,$3,$4,$(awk -v k="$5" 'BEGIN{printf "%.1f", k / 1024}')" >> "$csv"; }
+record() { echo "$1,$2,$3,$4,$(awk -v k="$5" 'BEGIN{if (k == "NaN") print "NaN"; else printf "%.1f", k / 1024}')" >> "$csv"; }
 # timed LOG CMD...: runs CMD with GNU time; leaves "wall peak_kb" in $work/time
 timed() { local log=$1; shift; /usr/bin/time -f "%e %M" -o "$work/time" "$@" 2> "$log"; }
 map_seconds() { sed -n 's/.* in \([0-9.]*\) s (.*/\1/p' "$1"; }
@@ -52,7 +52,8 @@ map() {
     read -r wall peak < "$work/time"
     record "$axis" "$x" "map $method" "$(map_seconds "$work/log")" "$peak"
     if [[ $method == ray_update ]]; then
-      record "$axis" "$x" simulate "$(awk -v w="$wall" -v m="$(map_seconds "$work/log")" 'BEGIN{print w - m}')" "$peak"
+      # Its memory is the map command's: NaN, not drawn twice.
+      record "$axis" "$x" simulate "$(awk -v w="$wall" -v m="$(map_seconds "$work/log")" 'BEGIN{print w - m}')" NaN
       beams=$(sed -n 's/.*; \([0-9]*\) beams in .*/\1/p' "$work/log")
     fi
   done

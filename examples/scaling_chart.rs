@@ -51,13 +51,21 @@ fn draw(csv_path: &Path, svg_path: &Path) -> Result<(), String> {
             .or_default()
             .push((number(1)?, number(3)?, number(4)?));
     }
+    // Every measure in every panel, in one order, so each keeps its colour
+    // (a panel without it draws nothing for it).
+    let mut measures: Vec<&String> = table.keys().map(|(_, m)| m).collect();
+    measures.sort();
+    measures.dedup();
     let series = |axis: &str, pick: fn(&(f64, f64, f64)) -> f64| -> Vec<Series> {
-        table
+        measures
             .iter()
-            .filter(|((a, _), _)| a == axis)
-            .map(|((_, measure), points)| Series {
-                name: measure.clone(),
-                points: points.iter().map(|p| (p.0, pick(p))).collect(),
+            .map(|measure| Series {
+                name: measure.to_string(),
+                points: table
+                    .get(&(axis.to_string(), measure.to_string()))
+                    .map_or(Vec::new(), |points| {
+                        points.iter().map(|p| (p.0, pick(p))).collect()
+                    }),
                 intervals: Vec::new(),
             })
             .collect()

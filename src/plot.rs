@@ -149,6 +149,10 @@ fn draw_panels(svg: &mut String, path: &Path, columns: usize, panels: &[Panel]) 
             .map_err(|e| err(&e))?;
         for (k, (series, points)) in panel.series.iter().zip(lines).enumerate() {
             let colour = COLOURS[k % COLOURS.len()];
+            if points.is_empty() && bars[k].is_empty() {
+                // Nothing to draw (nor to name); its colour stays its own.
+                continue;
+            }
             chart
                 .draw_series(bars[k].iter().map(|&(x, lo, hi)| {
                     PathElement::new(vec![(x, lo), (x, hi)], colour.stroke_width(1))
