@@ -1,7 +1,7 @@
 //! OctoMap's file formats (docs/octomap.md): `.ot` (full log-odds)
 //! and `.bt` (maximum likelihood, 2 bits per child), written and read.
 
-use super::octree::{Clamp, Octree};
+use super::octree::{Clamp, NodeId, Octree, DEPTH};
 use crate::error::{Error, Result};
 use std::io::{BufRead, Read};
 use std::path::Path;
@@ -38,7 +38,7 @@ pub fn to_ot(tree: &Octree) -> Vec<u8> {
     out
 }
 
-fn write_ot_node(tree: &Octree, node: usize, out: &mut Vec<u8>) {
+fn write_ot_node(tree: &Octree, node: NodeId, out: &mut Vec<u8>) {
     let (value, children) = tree.raw(node);
     out.extend_from_slice(&value.to_le_bytes());
     let Some(block) = children else {
@@ -47,14 +47,14 @@ fn write_ot_node(tree: &Octree, node: usize, out: &mut Vec<u8>) {
     };
     let mut mask = 0u8;
     for i in 0..8 {
-        if !tree.raw(block + i).0.is_nan() {
+        if !tree.raw(block.offset(i)).0.is_nan() {
             mask |= 1 << i;
         }
     }
     out.push(mask);
     for i in 0..8 {
         if mask & (1 << i) != 0 {
-            write_ot_node(tree, block + i, out);
+            write_ot_node(tree, block.offset(i), out);
         }
     }
 }
@@ -69,7 +69,7 @@ pub fn to_bt(tree: &Octree, clamp: Clamp) -> Vec<u8> {
     if children.is_none() && !value.is_nan() {
         let block = ml.raw_expand(ml.root());
         for i in 0..8 {
-            ml.set_raw_value(block + i, value);
+            ml.set_raw_value(block.offset(i), value);
         }
     }
     let (value, _) = ml.raw(ml.root());
@@ -85,13 +85,13 @@ pub fn to_bt(tree: &Octree, clamp: Clamp) -> Vec<u8> {
     out
 }
 
-fn write_bt_node(tree: &Octree, node: usize, out: &mut Vec<u8>) {
+fn write_bt_node(tree: &Octree, node: NodeId, out: &mut Vec<u8>) {
     let Some(block) = tree.raw(node).1 else {
         return;
     };
     let mut bytes = [0u8; 2];
     for i in 0..8 {
-        let (value, grandchildren) = tree.raw(block + i);
+        let (value, grandchildren) = tree.raw(block.offset(i));
         let code = if value.is_nan() {
             0
         } else if grandchildren.is_some() {
@@ -105,8 +105,8 @@ fn write_bt_node(tree: &Octree, node: usize, out: &mut Vec<u8>) {
     }
     out.extend_from_slice(&bytes);
     for i in 0..8 {
-        if tree.raw(block + i).1.is_some() {
-            write_bt_node(tree, block + i, out);
+        if tree.raw(block.offset(i)).1.is_some() {
+            write_bt_node(tree, block.offset(i), out);
         }
     }
 }
@@ -198,6 +198,9 @@ pub fn parse(bytes: &[u8], clamp: Clamp) -> std::result::Result<Octree, String> 
     Ok(tree)
 }
 
+/// A file whose tree goes deeper than OctoMap's 16 levels.
+const BELOW_FINEST: &str = "a node has children below the finest level (depth 16)";
+
 fn take<'a>(body: &'a [u8], cursor: &mut usize, n: usize) -> std::result::Result<&'a [u8], String> {
     let slice = body
         .get(*cursor..*cursor + n)
@@ -208,7 +211,7 @@ fn take<'a>(body: &'a [u8], cursor: &mut usize, n: usize) -> std::result::Result
 
 fn read_ot_node(
     tree: &mut Octree,
-    node: usize,
+    node: NodeId,
     body: &[u8],
     cursor: &mut usize,
 ) -> std::result::Result<(), String> {
@@ -220,10 +223,13 @@ fn read_ot_node(
     tree.set_raw_value(node, value);
     let mask = take(body, cursor, 1)?[0];
     if mask != 0 {
+        if node.depth() == DEPTH {
+            return Err(BELOW_FINEST.into());
+        }
         let block = tree.raw_expand(node);
         for i in 0..8 {
             if mask & (1 << i) != 0 {
-                read_ot_node(tree, block + i, body, cursor)?;
+                read_ot_node(tree, block.offset(i), body, cursor)?;
             }
         }
     }
@@ -232,28 +238,31 @@ fn read_ot_node(
 
 fn read_bt_node(
     tree: &mut Octree,
-    node: usize,
+    node: NodeId,
     body: &[u8],
     cursor: &mut usize,
     clamp: Clamp,
 ) -> std::result::Result<(), String> {
     let bytes = take(body, cursor, 2)?;
     let codes: [u8; 8] = std::array::from_fn(|i| (bytes[i / 4] >> (2 * (i % 4))) & 3);
+    if node.depth() == DEPTH {
+        return Err(BELOW_FINEST.into());
+    }
     let block = tree.raw_expand(node);
     for (i, code) in codes.iter().enumerate() {
         match code {
-            1 => tree.set_raw_value(block + i, clamp.min),
-            2 => tree.set_raw_value(block + i, clamp.max),
+            1 => tree.set_raw_value(block.offset(i), clamp.min),
+            2 => tree.set_raw_value(block.offset(i), clamp.max),
             3 => {
-                tree.set_raw_value(block + i, clamp.min);
-                read_bt_node(tree, block + i, body, cursor, clamp)?;
+                tree.set_raw_value(block.offset(i), clamp.min);
+                read_bt_node(tree, block.offset(i), body, cursor, clamp)?;
             }
             _ => {}
         }
     }
     // Inner value: the max of the children, as OctoMap's reader computes it.
     let max = (0..8)
-        .map(|i| tree.raw(block + i).0)
+        .map(|i| tree.raw(block.offset(i)).0)
         .filter(|v| !v.is_nan())
         .fold(f32::NAN, f32::max);
     tree.set_raw_value(node, max);

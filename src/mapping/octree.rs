@@ -5,8 +5,10 @@
 //! unknown; an inner node holds the maximum of its children; eight equal leaf
 //! children are pruned into their parent.
 //!
-//! Storage: one pool of 8-byte nodes (`f32` log-odds, `u32` index of a block of
-//! eight children); an unknown child slot holds NaN. Freed blocks are reused.
+//! Storage: a pool of 8-byte nodes for depths 0–15 (`f32` log-odds, `u32`
+//! index of a block of eight children) and a pool of bare `f32` log-odds for
+//! the finest cells (depth 16 never has children), so a finest cell costs 4
+//! bytes; an unknown slot holds NaN. Freed blocks are reused.
 
 use crate::geometry::Point3;
 
@@ -193,8 +195,34 @@ pub struct TreeStats {
 #[derive(Clone)]
 pub struct Octree {
     resolution: f64,
+    /// Nodes of depths 0–15; the children of a depth-15 node are in `finest`.
     nodes: Vec<Node>,
+    /// The finest cells' log-odds, in blocks of eight.
+    finest: Vec<f32>,
     free_blocks: Vec<u32>,
+    free_finest_blocks: Vec<u32>,
+}
+
+/// A node of the tree for the file formats: its pool index and depth.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct NodeId {
+    index: usize,
+    depth: u8,
+}
+
+impl NodeId {
+    /// Its depth (0: the root, 16: a finest cell).
+    pub(crate) fn depth(self) -> u8 {
+        self.depth
+    }
+
+    /// The `i`-th node of the block starting at `self`.
+    pub(crate) fn offset(self, i: usize) -> NodeId {
+        NodeId {
+            index: self.index + i,
+            depth: self.depth,
+        }
+    }
 }
 
 impl std::fmt::Debug for Octree {
@@ -225,7 +253,9 @@ impl Octree {
         Self {
             resolution,
             nodes: vec![UNKNOWN],
+            finest: Vec::new(),
             free_blocks: Vec::new(),
+            free_finest_blocks: Vec::new(),
         }
     }
 
@@ -283,61 +313,94 @@ impl Octree {
         Point3::new(c(0), c(1), c(2))
     }
 
-    fn alloc_block(&mut self, fill: Node) -> u32 {
-        if let Some(block) = self.free_blocks.pop() {
-            self.nodes[block as usize..block as usize + 8].fill(fill);
-            block
+    /// A block of eight children for a node at `depth`, all `value`.
+    fn alloc_block(&mut self, depth: u8, value: f32) -> u32 {
+        if depth + 1 == DEPTH {
+            if let Some(block) = self.free_finest_blocks.pop() {
+                self.finest[block as usize..block as usize + 8].fill(value);
+                block
+            } else {
+                let block = self.finest.len() as u32;
+                self.finest.extend_from_slice(&[value; 8]);
+                block
+            }
         } else {
-            let block = self.nodes.len() as u32;
-            self.nodes.extend_from_slice(&[fill; 8]);
-            block
+            let fill = Node {
+                value,
+                children: NO_CHILDREN,
+            };
+            if let Some(block) = self.free_blocks.pop() {
+                self.nodes[block as usize..block as usize + 8].fill(fill);
+                block
+            } else {
+                let block = self.nodes.len() as u32;
+                self.nodes.extend_from_slice(&[fill; 8]);
+                block
+            }
         }
     }
 
-    /// Gives `node` children: copies of its value (a pruned leaf) or unknown.
-    fn expand(&mut self, node: usize) -> u32 {
-        let fill = Node {
-            value: self.nodes[node].value,
-            children: NO_CHILDREN,
-        };
-        let block = self.alloc_block(fill);
+    /// Gives `node` (at `depth` < 16) children: copies of its value (a
+    /// pruned leaf) or unknown.
+    fn expand(&mut self, node: usize, depth: u8) -> u32 {
+        let block = self.alloc_block(depth, self.nodes[node].value);
         self.nodes[node].children = block;
         block
     }
 
-    /// Max of the known children into `node`; prunes eight equal leaves.
-    fn refresh(&mut self, node: usize) {
+    /// Max of the known children into `node` (at `depth` < 16); prunes
+    /// eight equal leaves.
+    fn refresh(&mut self, node: usize, depth: u8) {
         let block = self.nodes[node].children;
         if block == NO_CHILDREN {
             return;
         }
-        let children = &self.nodes[block as usize..block as usize + 8];
-        let first = children[0];
-        let prunable = first.children == NO_CHILDREN
-            && !first.value.is_nan()
-            && children
+        let range = block as usize..block as usize + 8;
+        let (prunable, max) = if depth + 1 == DEPTH {
+            let children = &self.finest[range];
+            let first = children[0];
+            let prunable = !first.is_nan() && children.iter().all(|&c| c == first);
+            let max = children
                 .iter()
-                .all(|c| c.children == NO_CHILDREN && c.value == first.value);
+                .copied()
+                .filter(|v| !v.is_nan())
+                .fold(f32::NAN, f32::max);
+            (prunable, max)
+        } else {
+            let children = &self.nodes[range];
+            let first = children[0];
+            let prunable = first.children == NO_CHILDREN
+                && !first.value.is_nan()
+                && children
+                    .iter()
+                    .all(|c| c.children == NO_CHILDREN && c.value == first.value);
+            let max = children
+                .iter()
+                .map(|c| c.value)
+                .filter(|v| !v.is_nan())
+                .fold(f32::NAN, f32::max);
+            (prunable, max)
+        };
         if prunable {
             self.nodes[node] = Node {
-                value: first.value,
+                value: max,
                 children: NO_CHILDREN,
             };
-            self.free_blocks.push(block);
+            if depth + 1 == DEPTH {
+                self.free_finest_blocks.push(block);
+            } else {
+                self.free_blocks.push(block);
+            }
             return;
         }
-        let max = children
-            .iter()
-            .map(|c| c.value)
-            .filter(|v| !v.is_nan())
-            .fold(f32::NAN, f32::max);
         self.nodes[node].value = max;
     }
 
     /// Walks from the root to the node at `depth` containing `key`, giving
     /// children to the nodes on the way (copies of a pruned leaf, or unknown)
     /// and recording the path. Stops with `None` at a pruned leaf whose value
-    /// `unchanged` says the update would not change.
+    /// `unchanged` says the update would not change. The index returned is
+    /// in the finest pool when `depth` is 16.
     fn descend(
         &mut self,
         key: &Key,
@@ -354,7 +417,7 @@ impl Octree {
                 if !current.is_nan() && unchanged(current) {
                     return None;
                 }
-                block = self.expand(node);
+                block = self.expand(node, d);
             }
             node = block as usize + key.child_at(d);
         }
@@ -369,11 +432,11 @@ impl Octree {
         else {
             return;
         };
-        let leaf = &mut self.nodes[node];
-        let base = if leaf.value.is_nan() { 0.0 } else { leaf.value };
-        leaf.value = clamp.apply(base + delta);
+        let leaf = &mut self.finest[node];
+        let base = if leaf.is_nan() { 0.0 } else { *leaf };
+        *leaf = clamp.apply(base + delta);
         for depth in (0..DEPTH).rev() {
-            self.refresh(path[depth as usize]);
+            self.refresh(path[depth as usize], depth);
         }
     }
 
@@ -394,7 +457,7 @@ impl Octree {
                 None => 0,
             };
             for d in (common + 1..valid.min(DEPTH as usize)).rev() {
-                self.refresh(path[d]);
+                self.refresh(path[d], d as u8);
             }
             let mut node = path[common];
             let mut depth = common;
@@ -407,22 +470,22 @@ impl Octree {
                         skipped = true;
                         break;
                     }
-                    block = self.expand(node);
+                    block = self.expand(node, depth as u8);
                 }
                 node = block as usize + ((code >> (3 * (DEPTH as usize - 1 - depth))) & 7) as usize;
                 depth += 1;
                 path[depth] = node;
             }
             if !skipped {
-                let leaf = &mut self.nodes[node];
-                let base = if leaf.value.is_nan() { 0.0 } else { leaf.value };
-                leaf.value = clamp.apply(base + delta);
+                let leaf = &mut self.finest[node];
+                let base = if leaf.is_nan() { 0.0 } else { *leaf };
+                *leaf = clamp.apply(base + delta);
             }
             valid = depth;
             previous = Some(code);
         }
         for d in (0..valid.min(DEPTH as usize)).rev() {
-            self.refresh(path[d]);
+            self.refresh(path[d], d as u8);
         }
     }
 
@@ -434,37 +497,45 @@ impl Octree {
         let Some(node) = self.descend(key, depth, &mut path, |_| false) else {
             return;
         };
-        self.add_subtree(node, delta, clamp);
+        self.add_subtree(node, depth, delta, clamp);
         for d in (0..depth).rev() {
-            self.refresh(path[d as usize]);
+            self.refresh(path[d as usize], d);
         }
     }
 
-    fn add_subtree(&mut self, node: usize, delta: f32, clamp: Clamp) {
+    fn add_subtree(&mut self, node: usize, depth: u8, delta: f32, clamp: Clamp) {
+        let add = |v: f32| clamp.apply(if v.is_nan() { delta } else { v + delta });
+        if depth == DEPTH {
+            self.finest[node] = add(self.finest[node]);
+            return;
+        }
         let block = self.nodes[node].children;
         if block == NO_CHILDREN {
-            let v = self.nodes[node].value;
-            self.nodes[node].value = clamp.apply(if v.is_nan() { delta } else { v + delta });
+            self.nodes[node].value = add(self.nodes[node].value);
             return;
         }
         for child in block as usize..block as usize + 8 {
-            self.add_subtree(child, delta, clamp);
+            self.add_subtree(child, depth + 1, delta, clamp);
         }
-        self.refresh(node);
+        self.refresh(node, depth);
     }
 
     /// The log-odds of the node at `depth` (or the coarser leaf) containing
     /// `key`; `None` when unknown. An inner node answers the max of its children.
     pub fn query(&self, key: &Key, depth: u8) -> Option<f32> {
-        let mut node = 0usize;
-        for d in 0..depth {
+        let (mut node, mut d) = (0usize, 0u8);
+        while d < depth {
             let block = self.nodes[node].children;
             if block == NO_CHILDREN {
                 break;
             }
             node = block as usize + key.child_at(d);
+            d += 1;
         }
-        let v = self.nodes[node].value;
+        let v = self.value(NodeId {
+            index: node,
+            depth: d,
+        });
         (!v.is_nan()).then_some(v)
     }
 
@@ -484,49 +555,53 @@ impl Octree {
     pub fn visit_leaves(&self, mut f: impl FnMut(Leaf)) {
         let mut stack = vec![(0usize, 0u8, [0u16; 3])];
         while let Some((node, depth, key)) = stack.pop() {
-            let n = self.nodes[node];
-            if n.children == NO_CHILDREN {
-                if !n.value.is_nan() {
+            let id = NodeId { index: node, depth };
+            let Some(block) = self.children(id) else {
+                let value = self.value(id);
+                if !value.is_nan() {
                     f(Leaf {
                         key: Key(key),
                         depth,
-                        value: n.value,
+                        value,
                     });
                 }
                 continue;
-            }
+            };
             let bit = 15 - depth as u32;
             for i in (0..8usize).rev() {
                 let mut k = key;
                 for (axis, kk) in k.iter_mut().enumerate() {
                     *kk |= (((i >> axis) & 1) as u16) << bit;
                 }
-                stack.push((n.children as usize + i, depth + 1, k));
+                stack.push((block.index + i, depth + 1, k));
             }
         }
     }
 
-    /// Releases the node pool's spare capacity (after the last update).
+    /// Releases the pools' spare capacity (after the last update).
     pub fn shrink_to_fit(&mut self) {
         self.nodes.shrink_to_fit();
+        self.finest.shrink_to_fit();
         self.free_blocks.shrink_to_fit();
+        self.free_finest_blocks.shrink_to_fit();
     }
 
     /// Node counts and pool memory.
     pub fn stats(&self) -> TreeStats {
         let (mut nodes, mut leaves, mut inner) = (0, 0, 0);
-        let mut stack = vec![0usize];
-        while let Some(node) = stack.pop() {
-            let n = self.nodes[node];
-            if n.value.is_nan() && n.children == NO_CHILDREN {
+        let mut stack = vec![NodeId { index: 0, depth: 0 }];
+        while let Some(id) = stack.pop() {
+            let children = self.children(id);
+            if self.value(id).is_nan() && children.is_none() {
                 continue;
             }
             nodes += 1;
-            if n.children == NO_CHILDREN {
-                leaves += 1;
-            } else {
-                inner += 1;
-                stack.extend(n.children as usize..n.children as usize + 8);
+            match children {
+                None => leaves += 1,
+                Some(block) => {
+                    inner += 1;
+                    stack.extend((0..8).map(|i| block.offset(i)));
+                }
             }
         }
         TreeStats {
@@ -534,17 +609,25 @@ impl Octree {
             leaves,
             inner,
             bytes: self.nodes.capacity() * std::mem::size_of::<Node>()
-                + self.free_blocks.capacity() * 4,
+                + self.finest.capacity() * std::mem::size_of::<f32>()
+                + (self.free_blocks.capacity() + self.free_finest_blocks.capacity()) * 4,
         }
     }
 
     /// Replaces every leaf value by `f(value)` (for example, maximum
     /// likelihood), then prunes what became equal.
     pub fn map_values(&mut self, f: impl Fn(f32) -> f32) {
-        self.map_node(0, &f);
+        self.map_node(0, 0, &f);
     }
 
-    fn map_node(&mut self, node: usize, f: &impl Fn(f32) -> f32) {
+    fn map_node(&mut self, node: usize, depth: u8, f: &impl Fn(f32) -> f32) {
+        if depth == DEPTH {
+            let v = self.finest[node];
+            if !v.is_nan() {
+                self.finest[node] = f(v);
+            }
+            return;
+        }
         let block = self.nodes[node].children;
         if block == NO_CHILDREN {
             let v = self.nodes[node].value;
@@ -554,37 +637,65 @@ impl Octree {
             return;
         }
         for child in block as usize..block as usize + 8 {
-            self.map_node(child, f);
+            self.map_node(child, depth + 1, f);
         }
-        self.refresh(node);
+        self.refresh(node, depth);
     }
 
-    // --- raw access for the file formats and the merge -------------------
-
-    /// The root's index.
-    pub(crate) fn root(&self) -> usize {
-        0
+    /// A node's value (NaN: unknown).
+    #[inline]
+    fn value(&self, id: NodeId) -> f32 {
+        if id.depth == DEPTH {
+            self.finest[id.index]
+        } else {
+            self.nodes[id.index].value
+        }
     }
 
-    /// A node's value (NaN: unknown) and children block.
-    pub(crate) fn raw(&self, node: usize) -> (f32, Option<usize>) {
-        let n = self.nodes[node];
-        (
-            n.value,
-            (n.children != NO_CHILDREN).then_some(n.children as usize),
-        )
+    /// The first of a node's eight children, if it has them.
+    #[inline]
+    fn children(&self, id: NodeId) -> Option<NodeId> {
+        if id.depth == DEPTH {
+            return None;
+        }
+        let block = self.nodes[id.index].children;
+        (block != NO_CHILDREN).then_some(NodeId {
+            index: block as usize,
+            depth: id.depth + 1,
+        })
+    }
+
+    // --- raw access for the file formats ---------------------------------
+
+    /// The root.
+    pub(crate) fn root(&self) -> NodeId {
+        NodeId { index: 0, depth: 0 }
+    }
+
+    /// A node's value (NaN: unknown) and the first of its children.
+    pub(crate) fn raw(&self, node: NodeId) -> (f32, Option<NodeId>) {
+        (self.value(node), self.children(node))
     }
 
     /// Sets a node's value (file reading).
-    pub(crate) fn set_raw_value(&mut self, node: usize, value: f32) {
-        self.nodes[node].value = value;
+    pub(crate) fn set_raw_value(&mut self, node: NodeId, value: f32) {
+        if node.depth == DEPTH {
+            self.finest[node.index] = value;
+        } else {
+            self.nodes[node.index].value = value;
+        }
     }
 
-    /// Gives a node eight unknown children (file reading).
-    pub(crate) fn raw_expand(&mut self, node: usize) -> usize {
-        let block = self.alloc_block(UNKNOWN);
-        self.nodes[node].children = block;
-        block as usize
+    /// Gives a node above the finest level eight unknown children (file
+    /// reading); returns the first.
+    pub(crate) fn raw_expand(&mut self, node: NodeId) -> NodeId {
+        assert!(node.depth < DEPTH, "a finest cell has no children");
+        let block = self.alloc_block(node.depth, f32::NAN);
+        self.nodes[node.index].children = block;
+        NodeId {
+            index: block as usize,
+            depth: node.depth + 1,
+        }
     }
 }
 

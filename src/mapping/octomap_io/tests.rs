@@ -83,3 +83,37 @@ fn corrupt_files_are_rejected() {
         .unwrap_err()
         .contains("not an OctoMap file"));
 }
+
+#[test]
+fn a_tree_deeper_than_sixteen_levels_is_refused() {
+    // A chain of nodes, each with one child: 17 levels of children.
+    for levels in [16usize, 17] {
+        for binary in [false, true] {
+            let mut bytes =
+                header(if binary { BT_HEADER } else { OT_HEADER }, levels + 1, 0.1).into_bytes();
+            for depth in 0..=levels {
+                if binary {
+                    // Child 0 inner (code 3) above the last level, free (1) at it.
+                    if depth < levels {
+                        bytes.extend_from_slice(&[if depth + 1 < levels { 3 } else { 1 }, 0]);
+                    }
+                } else {
+                    bytes.extend_from_slice(&0.5f32.to_le_bytes());
+                    bytes.push(u8::from(depth < levels));
+                }
+            }
+            let read = parse(&bytes, Clamp::OCTOMAP);
+            if levels == 16 {
+                let tree = read.unwrap_or_else(|e| panic!("16 levels, binary {binary}: {e}"));
+                assert_eq!(tree.stats().leaves, 1);
+            } else {
+                assert!(
+                    read.as_ref()
+                        .is_err_and(|e| e.contains("below the finest level")),
+                    "17 levels, binary {binary}: {:?}",
+                    read.map(|t| t.stats())
+                );
+            }
+        }
+    }
+}
