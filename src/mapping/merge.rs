@@ -391,10 +391,29 @@ pub fn surface_inside(
             return hit;
         }
     }
-    for a in bins.azimuth.0..=bins.azimuth.1 {
-        for e in bins.elevation.0..=bins.elevation.1 {
-            if visit(a, e) {
-                return hit;
+    // Tiles of 4 × 4 bins (pyramid level 2) whose bands all miss [lo, hi]
+    // are passed over whole. `others_in_tiles` is then set if the tile holds
+    // any beam, inside the box or not: it only decides whether `any_crosses`
+    // is asked, which answers exactly either way.
+    let level = grid.tile_level(2);
+    let ((a0, a1), (e0, e1)) = (bins.azimuth, bins.elevation);
+    let mut others_in_tiles = false;
+    for ta in a0 >> level..=a1 >> level {
+        for te in e0 >> level..=e1 >> level {
+            let tile = grid.tile_summary(level, ta, te);
+            if tile.filled == 0 {
+                continue;
+            }
+            if tile.near > hi + margin || tile.far < lo - margin {
+                others_in_tiles = true;
+                continue;
+            }
+            for a in a0.max(ta << level)..=a1.min(((ta + 1) << level) - 1) {
+                for e in e0.max(te << level)..=e1.min(((te + 1) << level) - 1) {
+                    if visit(a, e) {
+                        return hit;
+                    }
+                }
             }
         }
     }
@@ -405,7 +424,8 @@ pub fn surface_inside(
             // through a beam that may hold the surface; decide whether it
             // applies only then.
             if centre_beams.iter().any(may_hold)
-                && !(others && any_crosses(grid, centre, half, bins, &may_hold))
+                && !((others || others_in_tiles)
+                    && any_crosses(grid, centre, half, bins, &may_hold))
             {
                 for beam in centre_beams {
                     hit = hit.max(inside(beam, lo, hi));

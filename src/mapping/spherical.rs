@@ -345,6 +345,20 @@ impl LocalGrid {
         }
     }
 
+    /// The pyramid level of tiles of `2^level` × `2^level` bins, or the
+    /// coarsest there is.
+    pub fn tile_level(&self, level: usize) -> usize {
+        level.min(self.levels.len().saturating_sub(1))
+    }
+
+    /// The aggregate over the tile `(ta, te)` of [`LocalGrid::tile_level`]
+    /// `level`: bins `ta·2^level ..` by `te·2^level ..`.
+    #[inline]
+    pub fn tile_summary(&self, level: usize, ta: usize, te: usize) -> &BoxSummary {
+        let l = &self.levels[level];
+        &l.cells[ta * l.dims[1] + te]
+    }
+
     /// The aggregate over a superset of the bins `[a0..=a1] x [e0..=e1]`: the
     /// coarsest pyramid level where the box spans at most two cells per axis.
     pub fn query(&self, a: (usize, usize), e: (usize, usize)) -> BoxSummary {
