@@ -356,37 +356,29 @@ impl Octree {
             return;
         }
         let range = block as usize..block as usize + 8;
-        let (prunable, max) = if depth + 1 == DEPTH {
-            let children = &self.finest[range];
-            let first = children[0];
-            let prunable = !first.is_nan() && children.iter().all(|&c| c == first);
-            let max = children
-                .iter()
-                .copied()
-                .filter(|v| !v.is_nan())
-                .fold(f32::NAN, f32::max);
-            (prunable, max)
+        let finest = depth + 1 == DEPTH;
+        // The children's values; all of them leaves (finest cells always are).
+        let (values, leaves): ([f32; 8], bool) = if finest {
+            (self.finest[range].try_into().expect("a block"), true)
         } else {
             let children = &self.nodes[range];
-            let first = children[0];
-            let prunable = first.children == NO_CHILDREN
-                && !first.value.is_nan()
-                && children
-                    .iter()
-                    .all(|c| c.children == NO_CHILDREN && c.value == first.value);
-            let max = children
-                .iter()
-                .map(|c| c.value)
-                .filter(|v| !v.is_nan())
-                .fold(f32::NAN, f32::max);
-            (prunable, max)
+            (
+                std::array::from_fn(|i| children[i].value),
+                children.iter().all(|c| c.children == NO_CHILDREN),
+            )
         };
+        let first = values[0];
+        let prunable = leaves && !first.is_nan() && values.iter().all(|&v| v == first);
+        let max = values
+            .into_iter()
+            .filter(|v| !v.is_nan())
+            .fold(f32::NAN, f32::max);
         if prunable {
             self.nodes[node] = Node {
                 value: max,
                 children: NO_CHILDREN,
             };
-            if depth + 1 == DEPTH {
+            if finest {
                 self.free_finest_blocks.push(block);
             } else {
                 self.free_blocks.push(block);

@@ -166,17 +166,12 @@ impl CellSet {
 
     #[inline]
     fn insert(&mut self, key: &Key) {
-        if self.dense {
-            self.insert_at(self.index(key), key);
-        } else if self.hashed.insert(key.packed()) {
-            self.codes.push(key.morton());
-        }
-    }
-
-    /// Dense sets: inserts the cell at bitmap index `i` (which is `key`'s).
-    #[inline]
-    fn insert_at(&mut self, i: usize, key: &Key) {
-        if self.mark(i) {
+        let new = if self.dense {
+            self.mark(self.index(key))
+        } else {
+            self.hashed.insert(key.packed())
+        };
+        if new {
             self.codes.push(key.morton());
         }
     }
