@@ -274,11 +274,15 @@ impl Octree {
     pub fn key(&self, p: &Point3) -> Option<Key> {
         let mut k = [0u16; 3];
         for (axis, out) in k.iter_mut().enumerate() {
-            let v = (p[axis] / self.resolution).floor();
-            if !v.is_finite() {
+            let v = p[axis] / self.resolution;
+            // Far outside (or NaN): no key. Inside, floor by truncation:
+            // `f64::floor` is a libm call on baseline x86-64, and this
+            // runs twice per ray.
+            if v.is_nan() || v.abs() >= 1e9 {
                 return None;
             }
-            let v = v as i64 + CENTER;
+            let truncated = v as i64;
+            let v = truncated - ((truncated as f64) > v) as i64 + CENTER;
             if !(0..(1 << 16)).contains(&v) {
                 return None;
             }

@@ -14,113 +14,182 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 /// (OctoMap's `computeRayKeys`). Appends to `out`; false if either end lies
 /// outside the tree.
 pub fn ray_keys(tree: &Octree, origin: &Point3, end: &Point3, out: &mut Vec<Key>) -> bool {
-    walk_ray(tree, origin, end, &mut |k, _| out.push(Key::unpack(k)))
+    walk_ray(tree, origin, end, |k| out.push(Key::unpack(k)))
 }
 
-/// The DDA behind [`ray_keys`]: calls `visit(key, (axis, step))` for each
-/// traversed cell ([`Key::packed`]: a key built in registers, not through
-/// memory), with the move that reached it (`None` for the first).
-#[inline]
-fn walk_ray(tree: &Octree, origin: &Point3, end: &Point3, visit: &mut impl VisitCell) -> bool {
+/// The DDA behind [`ray_keys`]: calls `visit(key)` for each traversed
+/// cell ([`Key::packed`]).
+#[inline(always)]
+fn walk_ray(tree: &Octree, origin: &Point3, end: &Point3, visit: impl FnMut(u64)) -> bool {
     let (Some(start), Some(stop)) = (tree.key(origin), tree.key(end)) else {
         return false;
     };
+    walk_keys(tree, origin, start, end, stop, visit);
+    true
+}
+
+/// [`walk_ray`] between ends whose keys (`start`, `stop`) are known.
+#[inline(always)]
+fn walk_keys(
+    tree: &Octree,
+    origin: &Point3,
+    start: Key,
+    end: &Point3,
+    stop: Key,
+    mut visit: impl FnMut(u64),
+) {
     if start == stop {
-        return true;
+        return;
     }
-    visit.visit(start.packed(), None);
-    let diff = end - origin;
-    let length = diff.norm();
-    let dir = diff / length;
-    let res = tree.resolution();
-    let mut step = [0i32; 3];
-    let mut t_max = [f64::MAX; 3];
-    let mut t_delta = [f64::MAX; 3];
-    for i in 0..3 {
-        if dir[i] > 0.0 {
-            step[i] = 1;
-        } else if dir[i] < 0.0 {
-            step[i] = -1;
-        }
-        if step[i] != 0 {
-            let border = tree.center(&start, 16)[i] + step[i] as f64 * res * 0.5;
-            t_max[i] = (border - origin[i]) / dir[i];
-            t_delta[i] = res / dir[i].abs();
-        }
-    }
-    // The walk's state in scalars (registers): indexing arrays by the axis
-    // taken would send every step through memory (store-to-load stalls).
+    visit(start.packed());
+    let Dda {
+        length,
+        step,
+        t_max,
+        t_delta,
+    } = Dda::new(tree, origin, start, end);
+    // The walk's state in scalars (registers), one complete branch per
+    // axis: indexing arrays by the axis taken would send every step
+    // through memory (store-to-load stalls).
     let [mut x, mut y, mut z] = start.0;
     let [mut tx, mut ty, mut tz] = t_max;
+    let [dx, dy, dz] = t_delta;
     let [sx, sy, sz] = step.map(|s| s as u16);
+    let stop = stop.packed();
     loop {
         // OctoMap's choice: x if before y and z, else z; y if before z, else z.
-        let dim = if tx < ty {
+        if tx < ty {
             if tx < tz {
                 x = x.wrapping_add(sx);
-                tx += t_delta[0];
-                0
+                tx += dx;
             } else {
                 z = z.wrapping_add(sz);
-                tz += t_delta[2];
-                2
+                tz += dz;
             }
         } else if ty < tz {
             y = y.wrapping_add(sy);
-            ty += t_delta[1];
-            1
+            ty += dy;
         } else {
             z = z.wrapping_add(sz);
-            tz += t_delta[2];
-            2
-        };
-        if [x, y, z] == stop.0 {
-            return true;
+            tz += dz;
+        }
+        let packed = x as u64 | (y as u64) << 16 | (z as u64) << 32;
+        if packed == stop {
+            return;
         }
         // Past the end point: numerical error; stop. (The smallest crossing
         // beyond `length`; no t is NaN, so no `f64::min` needed.)
         if (tx > length) & (ty > length) & (tz > length) {
-            return true;
+            return;
         }
-        let packed = x as u64 | (y as u64) << 16 | (z as u64) << 32;
-        visit.visit(packed, Some((dim, step[dim])));
+        visit(packed);
     }
 }
 
-/// What [`walk_ray`] calls for each cell: the packed key and the move that
-/// reached it.
-trait VisitCell {
-    fn visit(&mut self, key: u64, moved: Option<(usize, i32)>);
+/// The set-up of one ray's walk (OctoMap's `computeRayKeys`): the
+/// segment's length, the step along each axis (±1, or 0 when the ray is
+/// parallel to that axis's planes), the ray parameter of the first
+/// crossing of each axis's cell border, and the parameter between two
+/// crossings (`f64::MAX` on an axis without steps).
+struct Dda {
+    length: f64,
+    step: [i32; 3],
+    t_max: [f64; 3],
+    t_delta: [f64; 3],
 }
 
-impl<F: FnMut(u64, Option<(usize, i32)>)> VisitCell for F {
-    #[inline]
-    fn visit(&mut self, key: u64, moved: Option<(usize, i32)>) {
-        self(key, moved)
-    }
-}
-
-/// The ray update's visitor on a dense set: steps the bitmap index along
-/// with the walk and lists the cells it is first to mark. Always inlined
-/// into the walk, so the walk's state stays in registers.
-struct MarkDense<'a> {
-    set: &'a CellSet,
-    strides: [isize; 3],
-    index: isize,
-    codes: &'a mut Vec<u64>,
-}
-
-impl VisitCell for MarkDense<'_> {
+impl Dda {
     #[inline(always)]
-    fn visit(&mut self, key: u64, moved: Option<(usize, i32)>) {
-        self.index = match moved {
-            None => self.set.index(&Key::unpack(key)) as isize,
-            Some((axis, step)) => self.index + self.strides[axis] * step as isize,
-        };
-        if self.set.mark(self.index as usize) {
-            self.codes.push(Key::unpack(key).morton());
+    fn new(tree: &Octree, origin: &Point3, start: Key, end: &Point3) -> Self {
+        let diff = end - origin;
+        let length = diff.norm();
+        let dir = diff / length;
+        let res = tree.resolution();
+        let mut step = [0i32; 3];
+        let mut t_max = [f64::MAX; 3];
+        let mut t_delta = [f64::MAX; 3];
+        let centre = tree.center(&start, 16);
+        for i in 0..3 {
+            if dir[i] > 0.0 {
+                step[i] = 1;
+            } else if dir[i] < 0.0 {
+                step[i] = -1;
+            }
+            if step[i] != 0 {
+                let border = centre[i] + step[i] as f64 * res * 0.5;
+                t_max[i] = (border - origin[i]) / dir[i];
+                t_delta[i] = res / dir[i].abs();
+            }
+        }
+        Dda {
+            length,
+            step,
+            t_max,
+            t_delta,
         }
     }
+}
+
+/// [`walk_keys`] on a dense set, setting each traversed cell's bit: the
+/// same comparisons and additions, with the cell tracked by its bitmap
+/// index alone (the end's cell is recognised by its index, which the one-
+/// cell margin of the set's box keeps unique). No calls in the loop, so
+/// its state stays in registers (a call would make every float register
+/// caller-saved: the state would live on the stack); no keys built; the
+/// set lists its cells afterwards ([`CellSet::list_marked_except`]).
+struct DenseWalk<'a> {
+    bits: &'a [AtomicU64],
+    strides: [isize; 3],
+}
+
+impl DenseWalk<'_> {
+    /// Marks the cells of the ray from the cell at `start` (bitmap index)
+    /// to the one at `stop`, the latter excluded.
+    #[inline(always)]
+    fn mark_ray(&self, dda: &Dda, start: usize, stop: usize) {
+        if start == stop {
+            return;
+        }
+        mark(self.bits, start);
+        let [ix, iy, iz]: [isize; 3] =
+            std::array::from_fn(|a| self.strides[a] * dda.step[a] as isize);
+        let [mut tx, mut ty, mut tz] = dda.t_max;
+        let [dx, dy, dz] = dda.t_delta;
+        let length = dda.length;
+        let (mut index, stop) = (start as isize, stop as isize);
+        loop {
+            // As in `walk_keys`.
+            index += if tx < ty {
+                if tx < tz {
+                    tx += dx;
+                    ix
+                } else {
+                    tz += dz;
+                    iz
+                }
+            } else if ty < tz {
+                ty += dy;
+                iy
+            } else {
+                tz += dz;
+                iz
+            };
+            if index == stop {
+                return;
+            }
+            if (tx > length) & (ty > length) & (tz > length) {
+                return;
+            }
+            mark(self.bits, index as usize);
+        }
+    }
+}
+
+/// Sets bit `i` of a bitmap; true when it was not set (by any thread).
+#[inline(always)]
+fn mark(bits: &[AtomicU64], i: usize) -> bool {
+    let (word, bit) = (&bits[i / 64], 1u64 << (i % 64));
+    word.load(Relaxed) & bit == 0 && word.fetch_or(bit, Relaxed) & bit == 0
 }
 
 /// A set of cells of one scan: a bitmap over the scan's bounding box of keys
@@ -140,15 +209,20 @@ struct CellSet {
 /// Rays walked per parallel task.
 const RAYS_PER_TASK: usize = 2048;
 
+/// Bitmap words listed per parallel task.
+const WORDS_PER_TASK: usize = 4096;
+
 /// Largest bounding box (cells) kept as a bitmap: 2^27 bits, 16 MiB.
 const DENSE_LIMIT: usize = 1 << 27;
 
 impl CellSet {
-    fn reset(&mut self, min: [u16; 3], max: [u16; 3]) {
+    /// Empties the set for the box `min..=max`, a bitmap up to
+    /// `dense_limit` cells.
+    fn reset(&mut self, min: [u16; 3], max: [u16; 3], dense_limit: usize) {
         self.min = min;
         self.dims = std::array::from_fn(|a| (max[a] - min[a]) as usize + 1);
         let volume = self.dims.iter().product::<usize>();
-        self.dense = volume <= DENSE_LIMIT;
+        self.dense = volume <= dense_limit;
         self.codes.clear();
         self.hashed.clear();
         if self.dense {
@@ -167,7 +241,7 @@ impl CellSet {
     #[inline]
     fn insert(&mut self, key: &Key) {
         let new = if self.dense {
-            self.mark(self.index(key))
+            mark(&self.bits, self.index(key))
         } else {
             self.hashed.insert(key.packed())
         };
@@ -176,11 +250,37 @@ impl CellSet {
         }
     }
 
-    /// Dense sets: sets bit `i`; true when it was not set (by any thread).
-    #[inline]
-    fn mark(&self, i: usize) -> bool {
-        let (word, bit) = (&self.bits[i / 64], 1u64 << (i % 64));
-        word.load(Relaxed) & bit == 0 && word.fetch_or(bit, Relaxed) & bit == 0
+    /// Dense sets: lists the codes of the cells marked here but not in
+    /// `except` (a set over the same box), in no order, after
+    /// [`CellSet::mark`]s that did not list them.
+    fn list_marked_except(&mut self, except: &CellSet) {
+        debug_assert!(except.dense && except.min == self.min && except.dims == self.dims);
+        let [nx, ny, _] = self.dims;
+        let min = self.min;
+        let found: Vec<Vec<u64>> = self
+            .bits
+            .par_chunks(WORDS_PER_TASK)
+            .zip(except.bits.par_chunks(WORDS_PER_TASK))
+            .enumerate()
+            .map(|(task, (words, excepted))| {
+                let mut codes = Vec::new();
+                for (w, (word, excepted)) in words.iter().zip(excepted).enumerate() {
+                    let mut bits = word.load(Relaxed) & !excepted.load(Relaxed);
+                    let base = (task * WORDS_PER_TASK + w) * 64;
+                    while bits != 0 {
+                        let i = base + bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        let (x, rest) = (i % nx, i / nx);
+                        let (y, z) = (rest % ny, rest / ny);
+                        let offset = [x, y, z];
+                        codes
+                            .push(Key(std::array::from_fn(|a| min[a] + offset[a] as u16)).morton());
+                    }
+                }
+                codes
+            })
+            .collect();
+        self.codes.extend(found.into_iter().flatten());
     }
 
     /// Bitmap index change of one step along `axis`.
@@ -236,9 +336,19 @@ impl Default for UpdateRule {
 #[derive(Default)]
 pub struct RayUpdater {
     rule: UpdateRule,
+    /// Largest box kept as a bitmap (tests: `Some(0)` for hash sets).
+    dense_limit: Option<usize>,
     free: CellSet,
     occupied: CellSet,
-    ends: Vec<(Point3, bool)>,
+    ends: Vec<RayEnd>,
+}
+
+/// Where one ray of a scan ends: the point, its key (none outside the
+/// tree), and whether it is a measured hit (else a carve to max range).
+struct RayEnd {
+    point: Point3,
+    key: Option<Key>,
+    hit: bool,
 }
 
 impl RayUpdater {
@@ -283,78 +393,81 @@ impl RayUpdater {
         self.free.codes.clear();
         self.occupied.codes.clear();
         self.ends.clear();
+        let end = |point: Point3, hit: bool| RayEnd {
+            point,
+            key: tree.key(&point),
+            hit,
+        };
         for p in hits {
             let d = p - origin;
             let n = d.norm();
-            if n <= max_range {
-                self.ends.push((*p, true));
+            self.ends.push(if n <= max_range {
+                end(*p, true)
             } else {
-                self.ends.push((origin + d * (max_range / n), false));
-            }
+                end(origin + d * (max_range / n), false)
+            });
         }
         self.ends
-            .extend(misses.iter().map(|d| (origin + d * max_range, false)));
+            .extend(misses.iter().map(|d| end(origin + d * max_range, false)));
         let Some(start) = tree.key(origin) else {
             return;
         };
+        // The box of the scan's keys, one cell wider on every side: a walk
+        // may end one cell past its end point's (numerical error).
         let (mut lo, mut hi) = (start.0, start.0);
-        for (p, _) in &self.ends {
-            if let Some(k) = tree.key(p) {
-                for a in 0..3 {
-                    lo[a] = lo[a].min(k.0[a]);
-                    hi[a] = hi[a].max(k.0[a]);
-                }
+        for k in self.ends.iter().filter_map(|e| e.key) {
+            for a in 0..3 {
+                lo[a] = lo[a].min(k.0[a]);
+                hi[a] = hi[a].max(k.0[a]);
             }
         }
-        self.free.reset(lo, hi);
-        self.occupied.reset(lo, hi);
-        let strides = [
-            self.free.stride(0),
-            self.free.stride(1),
-            self.free.stride(2),
-        ];
-        if self.free.dense {
-            // Rays in parallel chunks; a cell's code goes to the chunk that
-            // set its bit first, so the set (and its sorted list) is the same
-            // whatever the thread count.
-            let free = &self.free;
-            let found: Vec<Vec<u64>> = self
-                .ends
-                .par_chunks(RAYS_PER_TASK)
-                .map(|chunk| {
-                    let mut codes = Vec::new();
-                    let mut visitor = MarkDense {
-                        set: free,
-                        strides,
-                        index: 0,
-                        codes: &mut codes,
-                    };
-                    for (end, _) in chunk {
-                        walk_ray(tree, origin, end, &mut visitor);
-                    }
-                    codes
-                })
-                .collect();
-            self.free.codes.extend(found.into_iter().flatten());
-        } else {
-            for (end, _) in &self.ends {
-                let free = &mut self.free;
-                walk_ray(tree, origin, end, &mut |k, _| free.insert(&Key::unpack(k)));
-            }
-        }
+        let lo = lo.map(|v| v.saturating_sub(1));
+        let hi = hi.map(|v| v.saturating_add(1));
+        let dense_limit = self.dense_limit.unwrap_or(DENSE_LIMIT);
+        self.free.reset(lo, hi, dense_limit);
+        self.occupied.reset(lo, hi, dense_limit);
         // A ray is walked when both its ends lie in the tree (the origin does).
-        for (end, hit) in &self.ends {
-            if *hit {
-                if let Some(k) = tree.key(end) {
-                    self.occupied.insert(&k);
+        if self.free.dense {
+            // Rays in parallel chunks, each setting bits; the set is the
+            // same whatever the thread count, and listed afterwards.
+            let free = &self.free;
+            let start_index = free.index(&start);
+            self.ends.par_chunks(RAYS_PER_TASK).for_each(|chunk| {
+                let walk = DenseWalk {
+                    bits: &free.bits,
+                    strides: std::array::from_fn(|axis| free.stride(axis)),
+                };
+                for e in chunk {
+                    if let Some(stop) = e.key {
+                        let dda = Dda::new(tree, origin, start, &e.point);
+                        walk.mark_ray(&dda, start_index, free.index(&stop));
+                    }
                 }
+            });
+        } else {
+            let free = &mut self.free;
+            for e in &self.ends {
+                if let Some(stop) = e.key {
+                    walk_keys(tree, origin, start, &e.point, stop, |k| {
+                        free.insert(&Key::unpack(k))
+                    });
+                }
+            }
+        }
+        for e in &self.ends {
+            if let (true, Some(k)) = (e.hit, e.key) {
+                self.occupied.insert(&k);
             }
         }
         // Occupied wins; update in depth-first (Morton) order, one walk each.
-        let occupied = &self.occupied;
-        self.free
-            .codes
-            .retain(|c| !occupied.contains(&Key::from_morton(*c)));
+        if self.free.dense {
+            self.free.list_marked_except(&self.occupied);
+        } else {
+            let occupied = &self.occupied;
+            self.free
+                .codes
+                .retain(|c| !occupied.contains(&Key::from_morton(*c)));
+        }
         self.free.codes.par_sort_unstable();
         self.occupied.codes.sort_unstable();
     }
@@ -371,6 +484,7 @@ impl RayUpdater {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng};
 
     #[test]
     fn axis_ray_visits_consecutive_cells() {
@@ -429,6 +543,151 @@ mod tests {
         // The no-return beam carves up to max range only.
         assert_eq!(at(0.05, 0.95), Some(LOG_ODDS_MISS));
         assert_eq!(at(0.05, 1.15), None);
+    }
+
+    /// The scan's cells the slow way: every ray's [`ray_keys`], the hit
+    /// cells occupied and winning, each cell updated once.
+    fn reference_scan(
+        tree: &mut Octree,
+        origin: &Point3,
+        hits: &[Point3],
+        misses: &[Vector3],
+        max_range: f64,
+    ) {
+        let mut free = std::collections::BTreeSet::new();
+        let mut occupied = std::collections::BTreeSet::new();
+        let mut keys = Vec::new();
+        let ends = hits.iter().map(|p| {
+            let d = p - origin;
+            match d.norm() <= max_range {
+                true => (*p, true),
+                false => (origin + d * (max_range / d.norm()), false),
+            }
+        });
+        let carves = misses.iter().map(|d| (origin + d * max_range, false));
+        for (end, hit) in ends.chain(carves) {
+            keys.clear();
+            ray_keys(tree, origin, &end, &mut keys);
+            free.extend(keys.iter().map(Key::morton));
+            if hit {
+                occupied.insert(tree.key(&end).unwrap().morton());
+            }
+        }
+        for code in free.difference(&occupied) {
+            tree.update(&Key::from_morton(*code), LOG_ODDS_MISS, Clamp::OCTOMAP);
+        }
+        for code in &occupied {
+            tree.update(&Key::from_morton(*code), LOG_ODDS_HIT, Clamp::OCTOMAP);
+        }
+    }
+
+    #[test]
+    fn bitmap_and_hash_set_scans_equal_the_ray_by_ray_reference() {
+        // Rays in every direction and of every length from an off-grid
+        // origin, with the awkward ones: parallel to axes and planes,
+        // ending on cell borders and corners, inside the origin's cell,
+        // beyond max range; and rays without return.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+        let res = 0.05;
+        let origin = Point3::new(0.013, -0.031, 0.257);
+        let mut hits: Vec<Point3> = (0..3000)
+            .map(|_| {
+                let d = Vector3::new(rng.random(), rng.random(), rng.random()) * 2.0
+                    - Vector3::repeat(1.0);
+                origin + d * rng.random_range(0.0..1.6)
+            })
+            .collect();
+        for axis in 0..3 {
+            for sign in [-1.0, 1.0] {
+                let mut d = Vector3::zeros();
+                d[axis] = sign * 0.83;
+                hits.push(origin + d);
+                d[(axis + 1) % 3] = 0.41;
+                hits.push(origin + d);
+            }
+        }
+        hits.extend((-8..8).map(|i| Point3::new(i as f64 * res, 0.3, -0.2)));
+        hits.extend((-8..8).map(|i| Point3::new(i as f64 * res, i as f64 * res, 0.5)));
+        // On borders behind the origin: walks that end one cell past the
+        // end point's cell (rounding), outside the box of the ends' keys.
+        hits.extend((-8..8).flat_map(|i| {
+            let i = i as f64 * res;
+            [
+                Point3::new(i, -0.65, -i - 0.3),
+                Point3::new(-0.55, i, 0.75 * i),
+                Point3::new(0.7 * i, 0.4 * i, -0.45),
+            ]
+        }));
+        hits.push(origin + Vector3::new(0.004, -0.002, 0.001));
+        let misses: Vec<Vector3> = (0..200)
+            .map(|_| {
+                Vector3::new(rng.random(), rng.random(), rng.random()).normalize()
+                    - Vector3::repeat(0.5)
+            })
+            .map(|d| d.normalize())
+            .collect();
+        let max_range = 1.2;
+        let mut reference = Octree::new(res);
+        reference_scan(&mut reference, &origin, &hits, &misses, max_range);
+        let mut found_some = false;
+        for dense_limit in [None, Some(0)] {
+            let mut tree = Octree::new(res);
+            let mut updater = RayUpdater {
+                dense_limit,
+                ..RayUpdater::default()
+            };
+            updater.insert_scan(&mut tree, &origin, &hits, &misses, max_range);
+            assert_eq!(updater.free.dense, dense_limit.is_none());
+            assert_eq!(tree.leaves(), reference.leaves(), "{dense_limit:?}");
+            found_some |= tree.leaves().len() > 1000;
+        }
+        assert!(found_some);
+    }
+
+    #[test]
+    fn a_walk_that_ends_past_its_end_cell_marks_that_cell() {
+        // Ends on a cell border (found by search): rounding takes the walk
+        // one cell past the end point's cell, outside the box of the two
+        // keys (which the bitmap's margin covers), as OctoMap's walk does.
+        let rays = [
+            (
+                Point3::new(
+                    -0.2546680671784336,
+                    -0.06507525711710072,
+                    -0.03859000907231325,
+                ),
+                Point3::new(0.6000000000000001, -0.65, 0.06342557812337679),
+            ),
+            (
+                Point3::new(
+                    0.010572242943098331,
+                    -0.19607791273795705,
+                    0.7206802121117919,
+                ),
+                Point3::new(1.1, -1.8, -0.23415381068819752),
+            ),
+        ];
+        for (origin, end) in rays {
+            let tree = Octree::new(0.05);
+            let mut keys = Vec::new();
+            ray_keys(&tree, &origin, &end, &mut keys);
+            let stop = tree.key(&end).unwrap();
+            assert!(
+                keys.iter().any(|k| k.0[1] < stop.0[1]),
+                "the case is exercised"
+            );
+            let mut reference = Octree::new(0.05);
+            reference_scan(&mut reference, &origin, &[end], &[], 5.0);
+            for dense_limit in [None, Some(0)] {
+                let mut tree = Octree::new(0.05);
+                let mut updater = RayUpdater {
+                    dense_limit,
+                    ..RayUpdater::default()
+                };
+                updater.insert_scan(&mut tree, &origin, &[end], &[], 5.0);
+                assert_eq!(tree.leaves(), reference.leaves(), "{dense_limit:?}");
+            }
+        }
     }
 
     #[test]

@@ -17,6 +17,41 @@ fn keys_and_centres_follow_octomap() {
     assert_eq!(Key::unpack(k.packed()), k);
 }
 
+#[test]
+fn keys_floor_like_octomap_on_every_side_of_a_cell_border() {
+    // OctoMap: floor(coordinate / resolution) + 2^15. Checked against
+    // `f64::floor` on borders, just beside them, and at random.
+    let tree = Octree::new(0.05);
+    let reference = |v: f64| {
+        let k = (v / 0.05).floor();
+        if !k.is_finite() {
+            return None;
+        }
+        let k = k as i64 + CENTER;
+        (0..1 << 16).contains(&k).then_some(k as u16)
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    let mut values = vec![
+        0.0,
+        -0.0,
+        1638.4,
+        -1638.4,
+        -1638.45,
+        1638.35,
+        f64::NAN,
+        f64::INFINITY,
+    ];
+    for i in -200..200 {
+        let border = i as f64 * 0.05;
+        values.extend([border, border.next_up(), border.next_down()]);
+    }
+    values.extend((0..10_000).map(|_| rng.random_range(-2000.0..2000.0)));
+    for v in values {
+        let key = tree.key(&Point3::new(v, 0.0, 0.0)).map(|k| k.0[0]);
+        assert_eq!(key, reference(v), "x = {v}");
+    }
+}
+
 /// The reference: a map of finest cells, no pruning, no inner nodes.
 fn reference_query(map: &HashMap<Key, f32>, key: &Key, depth: u8) -> Option<f32> {
     let shift = DEPTH - depth;
