@@ -130,7 +130,7 @@ fn report(args: &MapArgs, resolution: f64, tree: &Octree, beams: usize, seconds:
     let stats = tree.stats();
     eprintln!(
         "{} map at {} m: {} nodes ({} leaves), {} bytes ({:.1} per leaf; OctoMap's layout: {:.1}); \
-         {beams} beams in {seconds:.2} s ({:.2} M beams/s); wrote {}",
+         {beams} beams in {seconds:.3} s ({:.3} M beams/s); wrote {}",
         args.method,
         resolution,
         stats.nodes,
