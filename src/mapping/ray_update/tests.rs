@@ -1,0 +1,229 @@
+use super::*;
+use rand::{Rng, SeedableRng};
+
+#[test]
+fn axis_ray_visits_consecutive_cells() {
+    let tree = Octree::new(0.1);
+    let mut keys = Vec::new();
+    assert!(ray_keys(
+        &tree,
+        &Point3::new(0.05, 0.05, 0.05),
+        &Point3::new(0.95, 0.05, 0.05),
+        &mut keys
+    ));
+    let xs: Vec<u16> = keys.iter().map(|k| k.0[0]).collect();
+    assert_eq!(xs, (32768..32777).collect::<Vec<_>>());
+    assert!(keys.iter().all(|k| k.0[1] == 32768 && k.0[2] == 32768));
+}
+
+#[test]
+fn diagonal_ray_is_face_connected_and_reaches_the_end() {
+    let tree = Octree::new(0.05);
+    let origin = Point3::new(0.013, -0.02, 0.031);
+    let end = Point3::new(1.37, 0.61, -0.43);
+    let mut keys = Vec::new();
+    assert!(ray_keys(&tree, &origin, &end, &mut keys));
+    assert_eq!(keys[0], tree.key(&origin).unwrap());
+    let last = tree.key(&end).unwrap();
+    let mut all = keys.clone();
+    all.push(last);
+    for pair in all.windows(2) {
+        let steps: i32 = (0..3)
+            .map(|a| (pair[0].0[a] as i32 - pair[1].0[a] as i32).abs())
+            .sum();
+        assert_eq!(steps, 1, "{pair:?}");
+    }
+    // Every cell the segment crosses lies on it (sampled densely).
+    for i in 0..=10_000 {
+        let p = origin + (end - origin) * (i as f64 / 10_000.0);
+        let k = tree.key(&p).unwrap();
+        assert!(all.contains(&k), "{p:?}");
+    }
+}
+
+#[test]
+fn scan_marks_free_then_occupied_and_occupied_wins() {
+    let mut tree = Octree::new(0.1);
+    let origin = Point3::new(0.05, 0.05, 0.05);
+    let hits = [Point3::new(0.55, 0.05, 0.05), Point3::new(0.35, 0.05, 0.05)];
+    let mut updater = RayUpdater::default();
+    updater.insert_scan(&mut tree, &origin, &hits, &[Vector3::y()], 1.0);
+    let at = |x: f64, y: f64| tree.value_at(&Point3::new(x, y, 0.05));
+    assert_eq!(at(0.05, 0.05), Some(LOG_ODDS_MISS));
+    assert_eq!(at(0.25, 0.05), Some(LOG_ODDS_MISS));
+    // Hit by one ray, traversed by the other: occupied, updated once.
+    assert_eq!(at(0.35, 0.05), Some(LOG_ODDS_HIT));
+    assert_eq!(at(0.55, 0.05), Some(LOG_ODDS_HIT));
+    assert_eq!(at(0.65, 0.05), None);
+    // The no-return beam carves up to max range only.
+    assert_eq!(at(0.05, 0.95), Some(LOG_ODDS_MISS));
+    assert_eq!(at(0.05, 1.15), None);
+}
+
+/// The scan's cells the slow way: every ray's [`ray_keys`], the hit
+/// cells occupied and winning, each cell updated once.
+fn reference_scan(
+    tree: &mut Octree,
+    origin: &Point3,
+    hits: &[Point3],
+    misses: &[Vector3],
+    max_range: f64,
+) {
+    let mut free = std::collections::BTreeSet::new();
+    let mut occupied = std::collections::BTreeSet::new();
+    let mut keys = Vec::new();
+    let ends = hits.iter().map(|p| {
+        let d = p - origin;
+        match d.norm() <= max_range {
+            true => (*p, true),
+            false => (origin + d * (max_range / d.norm()), false),
+        }
+    });
+    let carves = misses.iter().map(|d| (origin + d * max_range, false));
+    for (end, hit) in ends.chain(carves) {
+        keys.clear();
+        ray_keys(tree, origin, &end, &mut keys);
+        free.extend(keys.iter().map(Key::morton));
+        if hit {
+            occupied.insert(tree.key(&end).unwrap().morton());
+        }
+    }
+    for code in free.difference(&occupied) {
+        tree.update(&Key::from_morton(*code), LOG_ODDS_MISS, Clamp::OCTOMAP);
+    }
+    for code in &occupied {
+        tree.update(&Key::from_morton(*code), LOG_ODDS_HIT, Clamp::OCTOMAP);
+    }
+}
+
+#[test]
+fn bitmap_and_hash_set_scans_equal_the_ray_by_ray_reference() {
+    // Rays in every direction and of every length from an off-grid
+    // origin, with the awkward ones: parallel to axes and planes,
+    // ending on cell borders and corners, inside the origin's cell,
+    // beyond max range; and rays without return.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+    let res = 0.05;
+    let origin = Point3::new(0.013, -0.031, 0.257);
+    let mut hits: Vec<Point3> = (0..3000)
+        .map(|_| {
+            let d =
+                Vector3::new(rng.random(), rng.random(), rng.random()) * 2.0 - Vector3::repeat(1.0);
+            origin + d * rng.random_range(0.0..1.6)
+        })
+        .collect();
+    for axis in 0..3 {
+        for sign in [-1.0, 1.0] {
+            let mut d = Vector3::zeros();
+            d[axis] = sign * 0.83;
+            hits.push(origin + d);
+            d[(axis + 1) % 3] = 0.41;
+            hits.push(origin + d);
+        }
+    }
+    hits.extend((-8..8).map(|i| Point3::new(i as f64 * res, 0.3, -0.2)));
+    hits.extend((-8..8).map(|i| Point3::new(i as f64 * res, i as f64 * res, 0.5)));
+    // On borders behind the origin: walks that end one cell past the
+    // end point's cell (rounding), outside the box of the ends' keys.
+    hits.extend((-8..8).flat_map(|i| {
+        let i = i as f64 * res;
+        [
+            Point3::new(i, -0.65, -i - 0.3),
+            Point3::new(-0.55, i, 0.75 * i),
+            Point3::new(0.7 * i, 0.4 * i, -0.45),
+        ]
+    }));
+    hits.push(origin + Vector3::new(0.004, -0.002, 0.001));
+    let misses: Vec<Vector3> = (0..200)
+        .map(|_| {
+            Vector3::new(rng.random(), rng.random(), rng.random()).normalize()
+                - Vector3::repeat(0.5)
+        })
+        .map(|d| d.normalize())
+        .collect();
+    let max_range = 1.2;
+    let mut reference = Octree::new(res);
+    reference_scan(&mut reference, &origin, &hits, &misses, max_range);
+    let mut found_some = false;
+    for dense_limit in [None, Some(0)] {
+        let mut tree = Octree::new(res);
+        let mut updater = RayUpdater {
+            dense_limit,
+            ..RayUpdater::default()
+        };
+        updater.insert_scan(&mut tree, &origin, &hits, &misses, max_range);
+        assert_eq!(updater.free.dense, dense_limit.is_none());
+        assert_eq!(tree.leaves(), reference.leaves(), "{dense_limit:?}");
+        found_some |= tree.leaves().len() > 1000;
+    }
+    assert!(found_some);
+}
+
+#[test]
+fn a_walk_that_ends_past_its_end_cell_marks_that_cell() {
+    // Ends on a cell border (found by search): rounding takes the walk
+    // one cell past the end point's cell, outside the box of the two
+    // keys (which the bitmap's margin covers), as OctoMap's walk does.
+    let rays = [
+        (
+            Point3::new(
+                -0.2546680671784336,
+                -0.06507525711710072,
+                -0.03859000907231325,
+            ),
+            Point3::new(0.6000000000000001, -0.65, 0.06342557812337679),
+        ),
+        (
+            Point3::new(
+                0.010572242943098331,
+                -0.19607791273795705,
+                0.7206802121117919,
+            ),
+            Point3::new(1.1, -1.8, -0.23415381068819752),
+        ),
+    ];
+    for (origin, end) in rays {
+        let tree = Octree::new(0.05);
+        let mut keys = Vec::new();
+        ray_keys(&tree, &origin, &end, &mut keys);
+        let stop = tree.key(&end).unwrap();
+        assert!(
+            keys.iter().any(|k| k.0[1] < stop.0[1]),
+            "the case is exercised"
+        );
+        let mut reference = Octree::new(0.05);
+        reference_scan(&mut reference, &origin, &[end], &[], 5.0);
+        for dense_limit in [None, Some(0)] {
+            let mut tree = Octree::new(0.05);
+            let mut updater = RayUpdater {
+                dense_limit,
+                ..RayUpdater::default()
+            };
+            updater.insert_scan(&mut tree, &origin, &[end], &[], 5.0);
+            assert_eq!(tree.leaves(), reference.leaves(), "{dense_limit:?}");
+        }
+    }
+}
+
+#[test]
+fn a_custom_rule_sets_the_steps_and_the_clamp() {
+    let rule = UpdateRule {
+        hit: 0.25,
+        miss: -0.125,
+        clamp: Clamp {
+            min: -0.2,
+            max: 0.375,
+        },
+    };
+    let mut tree = Octree::new(0.1);
+    let origin = Point3::new(0.05, 0.05, 0.05);
+    let hits = [Point3::new(0.55, 0.05, 0.05)];
+    let mut updater = RayUpdater::new(rule);
+    let at = |tree: &Octree, x: f64| tree.value_at(&Point3::new(x, 0.05, 0.05));
+    updater.insert_scan(&mut tree, &origin, &hits, &[], 1.0);
+    assert_eq!(at(&tree, 0.25), Some(-0.125));
+    assert_eq!(at(&tree, 0.55), Some(0.25));
+    updater.insert_scan(&mut tree, &origin, &hits, &[], 1.0);
+    assert_eq!(at(&tree, 0.25), Some(-0.2), "clamped below");
+    assert_eq!(at(&tree, 0.55), Some(0.375), "clamped above");
+}
