@@ -320,27 +320,13 @@ impl Octree {
     /// A block of eight children for a node at `depth`, all `value`.
     fn alloc_block(&mut self, depth: u8, value: f32) -> u32 {
         if depth + 1 == DEPTH {
-            if let Some(block) = self.free_finest_blocks.pop() {
-                self.finest[block as usize..block as usize + 8].fill(value);
-                block
-            } else {
-                let block = self.finest.len() as u32;
-                self.finest.extend_from_slice(&[value; 8]);
-                block
-            }
+            take_block(&mut self.finest, &mut self.free_finest_blocks, value)
         } else {
             let fill = Node {
                 value,
                 children: NO_CHILDREN,
             };
-            if let Some(block) = self.free_blocks.pop() {
-                self.nodes[block as usize..block as usize + 8].fill(fill);
-                block
-            } else {
-                let block = self.nodes.len() as u32;
-                self.nodes.extend_from_slice(&[fill; 8]);
-                block
-            }
+            take_block(&mut self.nodes, &mut self.free_blocks, fill)
         }
     }
 
@@ -692,6 +678,19 @@ impl Octree {
             index: block as usize,
             depth: node.depth + 1,
         }
+    }
+}
+
+/// A block of eight `fill`s in `pool`: a freed one (from `free`) if any,
+/// else a new one at the end; its first index.
+fn take_block<T: Copy>(pool: &mut Vec<T>, free: &mut Vec<u32>, fill: T) -> u32 {
+    if let Some(block) = free.pop() {
+        pool[block as usize..block as usize + 8].fill(fill);
+        block
+    } else {
+        let block = pool.len() as u32;
+        pool.extend_from_slice(&[fill; 8]);
+        block
     }
 }
 
