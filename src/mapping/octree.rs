@@ -14,7 +14,7 @@ use crate::geometry::Point3;
 
 /// Depth of the finest level.
 pub const DEPTH: u8 = 16;
-const CENTER: i64 = 1 << 15;
+pub(crate) const CENTER: i64 = 1 << 15;
 const NO_CHILDREN: u32 = u32::MAX;
 
 /// Integer cell coordinates at the finest level.

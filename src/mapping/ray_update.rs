@@ -6,6 +6,7 @@
 
 use super::octree::{Clamp, Key, Octree, LOG_ODDS_HIT, LOG_ODDS_MISS};
 use crate::geometry::{Point3, Vector3};
+use dense::DenseWalk;
 use rayon::prelude::*;
 use rustc_hash::FxHashSet;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -47,7 +48,7 @@ fn walk_keys(
         step,
         t_max,
         t_delta,
-    } = Dda::new(tree, origin, start, end);
+    } = Dda::new(tree.resolution(), origin, &tree.center(&start, 16), end);
     // The walk's state in scalars (registers), one complete branch per
     // axis: indexing arrays by the axis taken would send every step
     // through memory (store-to-load stalls).
@@ -99,16 +100,16 @@ struct Dda {
 }
 
 impl Dda {
+    /// The walk from `origin`, in the cell whose centre is `centre`, to
+    /// `end`, on a grid of cells of size `res`.
     #[inline(always)]
-    fn new(tree: &Octree, origin: &Point3, start: Key, end: &Point3) -> Self {
+    fn new(res: f64, origin: &Point3, centre: &Point3, end: &Point3) -> Self {
         let diff = end - origin;
         let length = diff.norm();
         let dir = diff / length;
-        let res = tree.resolution();
         let mut step = [0i32; 3];
         let mut t_max = [f64::MAX; 3];
         let mut t_delta = [f64::MAX; 3];
-        let centre = tree.center(&start, 16);
         for i in 0..3 {
             if dir[i] > 0.0 {
                 step[i] = 1;
@@ -126,61 +127,6 @@ impl Dda {
             step,
             t_max,
             t_delta,
-        }
-    }
-}
-
-/// [`walk_keys`] on a dense set, setting each traversed cell's bit: the
-/// same comparisons and additions, with the cell tracked by its bitmap
-/// index alone (the end's cell is recognised by its index, which the one-
-/// cell margin of the set's box keeps unique). No calls in the loop, so
-/// its state stays in registers (a call would make every float register
-/// caller-saved: the state would live on the stack); no keys built; the
-/// set lists its cells afterwards ([`CellSet::list_marked_except`]).
-struct DenseWalk<'a> {
-    bits: &'a [AtomicU64],
-    strides: [isize; 3],
-}
-
-impl DenseWalk<'_> {
-    /// Marks the cells of the ray from the cell at `start` (bitmap index)
-    /// to the one at `stop`, the latter excluded.
-    #[inline(always)]
-    fn mark_ray(&self, dda: &Dda, start: usize, stop: usize) {
-        if start == stop {
-            return;
-        }
-        mark(self.bits, start);
-        let [ix, iy, iz]: [isize; 3] =
-            std::array::from_fn(|a| self.strides[a] * dda.step[a] as isize);
-        let [mut tx, mut ty, mut tz] = dda.t_max;
-        let [dx, dy, dz] = dda.t_delta;
-        let length = dda.length;
-        let (mut index, stop) = (start as isize, stop as isize);
-        loop {
-            // As in `walk_keys`.
-            index += if tx < ty {
-                if tx < tz {
-                    tx += dx;
-                    ix
-                } else {
-                    tz += dz;
-                    iz
-                }
-            } else if ty < tz {
-                ty += dy;
-                iy
-            } else {
-                tz += dz;
-                iz
-            };
-            if index == stop {
-                return;
-            }
-            if (tx > length) & (ty > length) & (tz > length) {
-                return;
-            }
-            mark(self.bits, index as usize);
         }
     }
 }
@@ -250,37 +196,45 @@ impl CellSet {
         }
     }
 
-    /// Dense sets: lists the codes of the cells marked here but not in
-    /// `except` (a set over the same box), in no order, after
-    /// [`CellSet::mark`]s that did not list them.
-    fn list_marked_except(&mut self, except: &CellSet) {
-        debug_assert!(except.dense && except.min == self.min && except.dims == self.dims);
+    /// Dense sets marked by [`mark`] without listing (this one the free
+    /// cells, `occupied` over the same box): lists the codes of both, in no
+    /// order, the free ones that are also occupied left out.
+    fn list_marked(&mut self, occupied: &mut CellSet) {
+        debug_assert!(occupied.dense && occupied.min == self.min && occupied.dims == self.dims);
         let [nx, ny, _] = self.dims;
         let min = self.min;
-        let found: Vec<Vec<u64>> = self
+        let code = |i: usize| {
+            let (x, rest) = (i % nx, i / nx);
+            let (y, z) = (rest % ny, rest / ny);
+            let offset = [x, y, z];
+            Key(std::array::from_fn(|a| min[a] + offset[a] as u16)).morton()
+        };
+        let list = |mut bits: u64, base: usize, codes: &mut Vec<u64>| {
+            while bits != 0 {
+                codes.push(code(base + bits.trailing_zeros() as usize));
+                bits &= bits - 1;
+            }
+        };
+        let found: Vec<(Vec<u64>, Vec<u64>)> = self
             .bits
             .par_chunks(WORDS_PER_TASK)
-            .zip(except.bits.par_chunks(WORDS_PER_TASK))
+            .zip(occupied.bits.par_chunks(WORDS_PER_TASK))
             .enumerate()
-            .map(|(task, (words, excepted))| {
-                let mut codes = Vec::new();
-                for (w, (word, excepted)) in words.iter().zip(excepted).enumerate() {
-                    let mut bits = word.load(Relaxed) & !excepted.load(Relaxed);
+            .map(|(task, (free, occupied))| {
+                let (mut free_codes, mut occupied_codes) = (Vec::new(), Vec::new());
+                for (w, (free, occupied)) in free.iter().zip(occupied).enumerate() {
                     let base = (task * WORDS_PER_TASK + w) * 64;
-                    while bits != 0 {
-                        let i = base + bits.trailing_zeros() as usize;
-                        bits &= bits - 1;
-                        let (x, rest) = (i % nx, i / nx);
-                        let (y, z) = (rest % ny, rest / ny);
-                        let offset = [x, y, z];
-                        codes
-                            .push(Key(std::array::from_fn(|a| min[a] + offset[a] as u16)).morton());
-                    }
+                    let occupied = occupied.load(Relaxed);
+                    list(free.load(Relaxed) & !occupied, base, &mut free_codes);
+                    list(occupied, base, &mut occupied_codes);
                 }
-                codes
+                (free_codes, occupied_codes)
             })
             .collect();
-        self.codes.extend(found.into_iter().flatten());
+        for (free, occupied_codes) in found {
+            self.codes.extend(free);
+            occupied.codes.extend(occupied_codes);
+        }
     }
 
     /// Bitmap index change of one step along `axis`.
@@ -338,16 +292,18 @@ pub struct RayUpdater {
     rule: UpdateRule,
     /// Largest box kept as a bitmap (tests: `Some(0)` for hash sets).
     dense_limit: Option<usize>,
+    /// Walks rays one at a time even where the CPU could take four
+    /// ([`DenseWalk`]; tests compare the two).
+    one_at_a_time: bool,
     free: CellSet,
     occupied: CellSet,
     ends: Vec<RayEnd>,
 }
 
-/// Where one ray of a scan ends: the point, its key (none outside the
-/// tree), and whether it is a measured hit (else a carve to max range).
+/// Where one ray of a scan ends: the point, and whether it is a measured
+/// hit (else a carve to max range).
 struct RayEnd {
     point: Point3,
-    key: Option<Key>,
     hit: bool,
 }
 
@@ -393,34 +349,31 @@ impl RayUpdater {
         self.free.codes.clear();
         self.occupied.codes.clear();
         self.ends.clear();
-        let end = |point: Point3, hit: bool| RayEnd {
-            point,
-            key: tree.key(&point),
-            hit,
-        };
         for p in hits {
             let d = p - origin;
             let n = d.norm();
             self.ends.push(if n <= max_range {
-                end(*p, true)
+                RayEnd {
+                    point: *p,
+                    hit: true,
+                }
             } else {
-                end(origin + d * (max_range / n), false)
+                RayEnd {
+                    point: origin + d * (max_range / n),
+                    hit: false,
+                }
             });
         }
-        self.ends
-            .extend(misses.iter().map(|d| end(origin + d * max_range, false)));
+        self.ends.extend(misses.iter().map(|d| RayEnd {
+            point: origin + d * max_range,
+            hit: false,
+        }));
         let Some(start) = tree.key(origin) else {
             return;
         };
         // The box of the scan's keys, one cell wider on every side: a walk
         // may end one cell past its end point's (numerical error).
-        let (mut lo, mut hi) = (start.0, start.0);
-        for k in self.ends.iter().filter_map(|e| e.key) {
-            for a in 0..3 {
-                lo[a] = lo[a].min(k.0[a]);
-                hi[a] = hi[a].max(k.0[a]);
-            }
-        }
+        let (lo, hi) = self.key_box(tree, start);
         let lo = lo.map(|v| v.saturating_sub(1));
         let hi = hi.map(|v| v.saturating_add(1));
         let dense_limit = self.dense_limit.unwrap_or(DENSE_LIMIT);
@@ -428,48 +381,86 @@ impl RayUpdater {
         self.occupied.reset(lo, hi, dense_limit);
         // A ray is walked when both its ends lie in the tree (the origin does).
         if self.free.dense {
-            // Rays in parallel chunks, each setting bits; the set is the
-            // same whatever the thread count, and listed afterwards.
-            let free = &self.free;
-            let start_index = free.index(&start);
-            self.ends.par_chunks(RAYS_PER_TASK).for_each(|chunk| {
-                let walk = DenseWalk {
-                    bits: &free.bits,
-                    strides: std::array::from_fn(|axis| free.stride(axis)),
-                };
-                for e in chunk {
-                    if let Some(stop) = e.key {
-                        let dda = Dda::new(tree, origin, start, &e.point);
-                        walk.mark_ray(&dda, start_index, free.index(&stop));
-                    }
-                }
-            });
+            // Rays in parallel chunks, each setting bits (free and occupied);
+            // the sets are the same whatever the thread count, and listed
+            // afterwards.
+            let dense = DenseWalk {
+                tree,
+                origin: *origin,
+                centre: tree.center(&start, 16),
+                start: self.free.index(&start),
+                free: &self.free,
+                occupied: &self.occupied,
+                strides: std::array::from_fn(|axis| self.free.stride(axis)),
+                lanes: !self.one_at_a_time,
+            };
+            self.ends
+                .par_chunks(RAYS_PER_TASK)
+                .for_each_init(Vec::new, |walks, chunk| {
+                    walks.clear();
+                    dense.begin_all(chunk, walks);
+                    dense.mark_rays(walks);
+                });
+            // Occupied wins.
+            self.free.list_marked(&mut self.occupied);
         } else {
             let free = &mut self.free;
             for e in &self.ends {
-                if let Some(stop) = e.key {
+                if let Some(stop) = tree.key(&e.point) {
                     walk_keys(tree, origin, start, &e.point, stop, |k| {
                         free.insert(&Key::unpack(k))
                     });
                 }
             }
-        }
-        for e in &self.ends {
-            if let (true, Some(k)) = (e.hit, e.key) {
-                self.occupied.insert(&k);
+            for e in self.ends.iter().filter(|e| e.hit) {
+                if let Some(k) = tree.key(&e.point) {
+                    self.occupied.insert(&k);
+                }
             }
-        }
-        // Occupied wins; update in depth-first (Morton) order, one walk each.
-        if self.free.dense {
-            self.free.list_marked_except(&self.occupied);
-        } else {
+            // Occupied wins.
             let occupied = &self.occupied;
             self.free
                 .codes
                 .retain(|c| !occupied.contains(&Key::from_morton(*c)));
         }
-        self.free.codes.par_sort_unstable();
-        self.occupied.codes.sort_unstable();
+        // Updates in depth-first (Morton) order, one walk each.
+        radsort::sort(&mut self.free.codes);
+        radsort::sort(&mut self.occupied.codes);
+    }
+
+    /// The smallest box of keys holding the origin's (`start`) and every
+    /// end point's that lies in the tree: the keys of the points' least
+    /// and greatest coordinates (keys grow with coordinates), or, when one
+    /// of those lies outside the tree, the keys one by one.
+    fn key_box(&self, tree: &Octree, start: Key) -> ([u16; 3], [u16; 3]) {
+        let (mut lo, mut hi) = (start.0, start.0);
+        let mut widen = |k: Key| {
+            for a in 0..3 {
+                lo[a] = lo[a].min(k.0[a]);
+                hi[a] = hi[a].max(k.0[a]);
+            }
+        };
+        let Some(first) = self.ends.first() else {
+            return (lo, hi);
+        };
+        let (least, greatest) = self
+            .ends
+            .iter()
+            .fold((first.point, first.point), |(l, g), e| {
+                (l.inf(&e.point), g.sup(&e.point))
+            });
+        match (tree.key(&least), tree.key(&greatest)) {
+            (Some(l), Some(g)) => {
+                widen(l);
+                widen(g);
+            }
+            _ => self
+                .ends
+                .iter()
+                .filter_map(|e| tree.key(&e.point))
+                .for_each(widen),
+        }
+        (lo, hi)
     }
 
     /// The second half of [`RayUpdater::insert_scan`]: the cells found by
@@ -481,5 +472,8 @@ impl RayUpdater {
     }
 }
 
+mod dense;
+#[cfg(target_arch = "x86_64")]
+mod lanes;
 #[cfg(test)]
 mod tests;

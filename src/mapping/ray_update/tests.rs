@@ -84,8 +84,8 @@ fn reference_scan(
         keys.clear();
         ray_keys(tree, origin, &end, &mut keys);
         free.extend(keys.iter().map(Key::morton));
-        if hit {
-            occupied.insert(tree.key(&end).unwrap().morton());
+        if let (true, Some(k)) = (hit, tree.key(&end)) {
+            occupied.insert(k.morton());
         }
     }
     for code in free.difference(&occupied) {
@@ -95,6 +95,10 @@ fn reference_scan(
         tree.update(&Key::from_morton(*code), LOG_ODDS_HIT, Clamp::OCTOMAP);
     }
 }
+
+/// The ways a scan's rays are walked: bitmap four at a time (where the CPU
+/// has AVX2), bitmap one at a time, hash set.
+const WALKS: [(Option<usize>, bool); 3] = [(None, false), (None, true), (Some(0), false)];
 
 #[test]
 fn bitmap_and_hash_set_scans_equal_the_ray_by_ray_reference() {
@@ -145,15 +149,20 @@ fn bitmap_and_hash_set_scans_equal_the_ray_by_ray_reference() {
     let mut reference = Octree::new(res);
     reference_scan(&mut reference, &origin, &hits, &misses, max_range);
     let mut found_some = false;
-    for dense_limit in [None, Some(0)] {
+    for (dense_limit, one_at_a_time) in WALKS {
         let mut tree = Octree::new(res);
         let mut updater = RayUpdater {
             dense_limit,
+            one_at_a_time,
             ..RayUpdater::default()
         };
         updater.insert_scan(&mut tree, &origin, &hits, &misses, max_range);
         assert_eq!(updater.free.dense, dense_limit.is_none());
-        assert_eq!(tree.leaves(), reference.leaves(), "{dense_limit:?}");
+        assert_eq!(
+            tree.leaves(),
+            reference.leaves(),
+            "{dense_limit:?} {one_at_a_time}"
+        );
         found_some |= tree.leaves().len() > 1000;
     }
     assert!(found_some);
@@ -193,10 +202,11 @@ fn a_walk_that_ends_past_its_end_cell_marks_that_cell() {
         );
         let mut reference = Octree::new(0.05);
         reference_scan(&mut reference, &origin, &[end], &[], 5.0);
-        for dense_limit in [None, Some(0)] {
+        for (dense_limit, one_at_a_time) in WALKS {
             let mut tree = Octree::new(0.05);
             let mut updater = RayUpdater {
                 dense_limit,
+                one_at_a_time,
                 ..RayUpdater::default()
             };
             updater.insert_scan(&mut tree, &origin, &[end], &[], 5.0);
@@ -226,4 +236,118 @@ fn a_custom_rule_sets_the_steps_and_the_clamp() {
     updater.insert_scan(&mut tree, &origin, &hits, &[], 1.0);
     assert_eq!(at(&tree, 0.25), Some(-0.2), "clamped below");
     assert_eq!(at(&tree, 0.55), Some(0.375), "clamped above");
+}
+
+/// Random end points around `origin` with the awkward ones: on cell
+/// borders, level with the origin on one or two axes (no steps there),
+/// in the origin's cell, outside the tree.
+fn awkward_ends(origin: &Point3, res: f64, n: usize, seed: u64) -> Vec<RayEnd> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut ends: Vec<RayEnd> = (0..n)
+        .map(|i| {
+            let mut p = origin + Vector3::new(rng.random(), rng.random(), rng.random()) * 3.0
+                - Vector3::repeat(1.5);
+            match i % 7 {
+                0 => p.x = (p.x / res).round() * res,
+                1 => p.y = origin.y,
+                2 => (p.x, p.z) = (origin.x, origin.z),
+                3 => p = origin + (p - origin) * 1e-3,
+                _ => {}
+            }
+            RayEnd {
+                point: p,
+                hit: i % 3 != 0,
+            }
+        })
+        .collect();
+    ends.push(RayEnd {
+        point: Point3::new(1e7, 0.0, 0.0),
+        hit: true,
+    });
+    ends.push(RayEnd {
+        point: Point3::new(0.1, f64::NAN, 0.0),
+        hit: true,
+    });
+    ends
+}
+
+#[test]
+fn four_lanes_set_up_and_walk_rays_bit_for_bit_as_one_at_a_time() {
+    #[cfg(target_arch = "x86_64")]
+    if !std::arch::is_x86_feature_detected!("avx2") {
+        eprintln!("no AVX2 on this CPU: both ways walk one ray at a time");
+    }
+    let res = 0.05;
+    let tree = Octree::new(res);
+    let origin = Point3::new(0.013, -0.031, 0.257);
+    let start = tree.key(&origin).unwrap();
+    // 4001 ends: the last chunk of four is a partial one.
+    let ends = awkward_ends(&origin, res, 3999, 5);
+    let (mut lo, mut hi) = (start.0, start.0);
+    for k in ends.iter().filter_map(|e| tree.key(&e.point)) {
+        for a in 0..3 {
+            lo[a] = lo[a].min(k.0[a] - 1);
+            hi[a] = hi[a].max(k.0[a] + 1);
+        }
+    }
+    let walked = |lanes: bool| {
+        let (mut free, mut occupied) = (CellSet::default(), CellSet::default());
+        free.reset(lo, hi, DENSE_LIMIT);
+        occupied.reset(lo, hi, DENSE_LIMIT);
+        let dense = DenseWalk {
+            tree: &tree,
+            origin,
+            centre: tree.center(&start, 16),
+            start: free.index(&start),
+            free: &free,
+            occupied: &occupied,
+            strides: std::array::from_fn(|axis| free.stride(axis)),
+            lanes,
+        };
+        let mut walks = Vec::new();
+        dense.begin_all(&ends, &mut walks);
+        // Bit for bit, -0.0 and 0.0 apart.
+        let set_up = format!("{walks:?}");
+        dense.mark_rays(&walks);
+        let bits =
+            |set: &CellSet| -> Vec<u64> { set.bits.iter().map(|w| w.load(Relaxed)).collect() };
+        (walks.len(), set_up, bits(&free), bits(&occupied))
+    };
+    let (four, one) = (walked(true), walked(false));
+    assert!(four.0 > 3000, "{} walks", four.0);
+    assert_eq!(four.1, one.1, "the walks' set-up");
+    assert!(four.2 == one.2, "the free cells");
+    assert!(four.3 == one.3, "the occupied cells");
+}
+
+#[test]
+fn a_scan_with_ends_outside_the_tree_walks_the_others() {
+    // The origin near the tree's edge (±1638.4 m at 5 cm): many ends have
+    // no key, so the box of keys is found key by key.
+    let res = 0.05;
+    let origin = Point3::new(1637.9, 0.01, -0.02);
+    let hits: Vec<Point3> = awkward_ends(&origin, res, 400, 9)
+        .iter()
+        .map(|e| e.point)
+        .filter(|p| !p.x.is_nan() && p.x < 1e6)
+        .collect();
+    assert!(hits.iter().any(|p| Octree::new(res).key(p).is_none()));
+    let misses = [Vector3::x(), -Vector3::x(), Vector3::new(0.6, 0.8, 0.0)];
+    let mut reference = Octree::new(res);
+    reference_scan(&mut reference, &origin, &hits, &misses, 2.0);
+    assert!(reference.leaves().len() > 100);
+    for (dense_limit, one_at_a_time) in WALKS {
+        let mut tree = Octree::new(res);
+        let mut updater = RayUpdater {
+            dense_limit,
+            one_at_a_time,
+            ..RayUpdater::default()
+        };
+        updater.insert_scan(&mut tree, &origin, &hits, &misses, 2.0);
+        assert_eq!(
+            tree.leaves(),
+            reference.leaves(),
+            "{dense_limit:?} {one_at_a_time}"
+        );
+    }
 }

@@ -1,0 +1,147 @@
+//! The ray update's walk on a dense set ([`CellSet`] bitmaps): what
+//! [`walk_keys`](super::walk_keys) does, with the cell tracked by its bitmap
+//! index alone (the end's cell is recognised by its index, which the one-
+//! cell margin of the set's box keeps unique). No keys are built; the sets
+//! list their cells afterwards ([`CellSet::list_marked`]).
+
+use super::{mark, CellSet, Dda, RayEnd};
+use crate::geometry::Point3;
+use crate::mapping::octree::Octree;
+use std::sync::atomic::AtomicU64;
+
+/// What every ray of one scan shares: the grid, the origin and its cell,
+/// the free and occupied bitmaps (one box), computed once per scan.
+pub(super) struct DenseWalk<'a> {
+    pub tree: &'a Octree,
+    pub origin: Point3,
+    /// The centre of the origin's cell.
+    pub centre: Point3,
+    /// The origin's cell, as a bitmap index.
+    pub start: usize,
+    pub free: &'a CellSet,
+    pub occupied: &'a CellSet,
+    /// Bitmap index change of a step along each axis.
+    pub strides: [isize; 3],
+    /// Four rays at once in AVX2 vectors where the CPU has them
+    /// ([`lanes`](super::lanes)); false: one at a time (tests compare).
+    pub lanes: bool,
+}
+
+/// One ray's walk on a bitmap, at its start: the [`Dda`] with steps as
+/// bitmap index changes and the cell as its index.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Walk {
+    pub t_max: [f64; 3],
+    pub t_delta: [f64; 3],
+    pub length: f64,
+    /// Bitmap index change of a step along each axis (signed).
+    pub steps: [isize; 3],
+    pub index: isize,
+    pub stop: isize,
+}
+
+impl DenseWalk<'_> {
+    /// Each ray of `ends` whose end lies in the tree: its end cell marked
+    /// occupied if it is a hit, and its walk, first cell marked, appended
+    /// to `walks` (none when it ends in the origin's cell).
+    pub fn begin_all(&self, ends: &[RayEnd], walks: &mut Vec<Walk>) {
+        #[cfg(target_arch = "x86_64")]
+        if self.lanes && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            unsafe { super::lanes::begin_all(self, ends, walks) };
+            return;
+        }
+        walks.extend(ends.iter().filter_map(|end| self.begin(end)));
+    }
+
+    /// [`DenseWalk::begin_all`] of one ray.
+    #[inline(always)]
+    pub fn begin(&self, end: &RayEnd) -> Option<Walk> {
+        let key = self.tree.key(&end.point)?;
+        if end.hit {
+            mark(&self.occupied.bits, self.occupied.index(&key));
+        }
+        let dda = Dda::new(
+            self.tree.resolution(),
+            &self.origin,
+            &self.centre,
+            &end.point,
+        );
+        self.walk(&dda, self.free.index(&key))
+    }
+
+    /// The walk of `dda` from the origin's cell to the one at `stop`
+    /// (bitmap index), with its first cell marked; none when the two are
+    /// one cell (nothing to mark).
+    #[inline(always)]
+    pub fn walk(&self, dda: &Dda, stop: usize) -> Option<Walk> {
+        if self.start == stop {
+            return None;
+        }
+        mark(&self.free.bits, self.start);
+        Some(Walk {
+            t_max: dda.t_max,
+            t_delta: dda.t_delta,
+            length: dda.length,
+            steps: std::array::from_fn(|a| self.strides[a] * dda.step[a] as isize),
+            index: self.start as isize,
+            stop: stop as isize,
+        })
+    }
+
+    /// Marks the free cells of every walk after its first (marked by
+    /// [`DenseWalk::walk`]), the end cells excluded.
+    pub fn mark_rays(&self, walks: &[Walk]) {
+        #[cfg(target_arch = "x86_64")]
+        if self.lanes && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            unsafe { super::lanes::mark_rays(&self.free.bits, walks) };
+            return;
+        }
+        for walk in walks {
+            finish(&self.free.bits, *walk);
+        }
+    }
+}
+
+/// Marks the cells of `walk` after its current one, up to its end cell
+/// (excluded): [`walk_keys`](super::walk_keys)'s comparisons and
+/// additions. No calls in the loop, so its state stays in registers (a
+/// call would make every float register caller-saved).
+#[inline(always)]
+pub(super) fn finish(bits: &[AtomicU64], walk: Walk) {
+    let [ix, iy, iz] = walk.steps;
+    let [mut tx, mut ty, mut tz] = walk.t_max;
+    let [dx, dy, dz] = walk.t_delta;
+    let Walk {
+        length,
+        mut index,
+        stop,
+        ..
+    } = walk;
+    loop {
+        // As in `walk_keys`.
+        index += if tx < ty {
+            if tx < tz {
+                tx += dx;
+                ix
+            } else {
+                tz += dz;
+                iz
+            }
+        } else if ty < tz {
+            ty += dy;
+            iy
+        } else {
+            tz += dz;
+            iz
+        };
+        if index == stop {
+            return;
+        }
+        if (tx > length) & (ty > length) & (tz > length) {
+            return;
+        }
+        mark(bits, index as usize);
+    }
+}

@@ -1,0 +1,309 @@
+//! Four rays walked at once, one per lane of AVX2 vectors. Lane by lane
+//! these are the scalar walk's comparisons and additions ([`finish`]), so
+//! the same cells: a lane whose axis is not taken adds `0.0` (exact) and
+//! its index adds 0. The axis is chosen by masks, not branches: the scalar
+//! walk spends most of its time on mispredicted axis choices, while here
+//! the four lanes' steps are one short chain of compare, mask and add, and
+//! the only branches left are the rare end of a lane's ray and the marks.
+
+use super::dense::{finish, DenseWalk, Walk};
+use super::{mark, Dda, RayEnd};
+use crate::mapping::octree::{Key, CENTER};
+use std::arch::x86_64::*;
+use std::sync::atomic::AtomicU64;
+
+/// [`DenseWalk::begin_all`], four rays at a time: the end cells' keys
+/// ([`Octree::key`](crate::mapping::octree::Octree::key)) and the walks'
+/// set-up ([`Dda::new`]) with the same operations lane by lane (a dozen
+/// divisions and a square root per ray, four to an instruction here).
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn begin_all(dense: &DenseWalk, ends: &[RayEnd], walks: &mut Vec<Walk>) {
+    let res = dense.tree.resolution();
+    let splat = |v: f64| _mm256_set1_pd(v);
+    let origin = [0, 1, 2].map(|a| splat(dense.origin[a]));
+    // The borders of the origin's cell a walk first crosses, as `Dda::new`
+    // computes them: centre + step·res·0.5 for step ±1.
+    let after = [0, 1, 2].map(|a| splat(dense.centre[a] + res * 0.5));
+    let before = [0, 1, 2].map(|a| splat(dense.centre[a] + -res * 0.5));
+    let sign = splat(-0.0);
+    let (zero, none) = (_mm256_setzero_pd(), splat(f64::MAX));
+    let lanes = |v: __m256d| -> [f64; 4] {
+        // SAFETY: four f64 lanes, any bit pattern valid.
+        unsafe { std::mem::transmute::<__m256d, [f64; 4]>(v) }
+    };
+    let mut four = ends.chunks_exact(4);
+    for ends in &mut four {
+        let point = [0, 1, 2].map(|a| {
+            _mm256_setr_pd(
+                ends[0].point[a],
+                ends[1].point[a],
+                ends[2].point[a],
+                ends[3].point[a],
+            )
+        });
+        // The end cells' keys: floor(p / res) + CENTER where |p / res| <
+        // 1e9 and the key fits 16 bits (else the ray is not walked).
+        let mut inside = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+        let key = point.map(|p| {
+            let v = _mm256_div_pd(p, splat(res));
+            let near = _mm256_cmp_pd::<_CMP_LT_OQ>(_mm256_andnot_pd(sign, v), splat(1e9));
+            let key = _mm256_add_pd(_mm256_floor_pd(v), splat(CENTER as f64));
+            let fits = _mm256_and_pd(
+                _mm256_cmp_pd::<_CMP_GE_OQ>(key, zero),
+                _mm256_cmp_pd::<_CMP_LT_OQ>(key, splat(65536.0)),
+            );
+            inside = _mm256_and_pd(inside, _mm256_and_pd(near, fits));
+            lanes(key)
+        });
+        let inside = _mm256_movemask_pd(inside);
+        // The walks' set-up.
+        let diff = [0, 1, 2].map(|a| _mm256_sub_pd(point[a], origin[a]));
+        let squares = diff.map(|d| _mm256_mul_pd(d, d));
+        let length = _mm256_sqrt_pd(_mm256_add_pd(
+            _mm256_add_pd(squares[0], squares[1]),
+            squares[2],
+        ));
+        let dir = diff.map(|d| _mm256_div_pd(d, length));
+        let forward = dir.map(|d| _mm256_cmp_pd::<_CMP_GT_OQ>(d, zero));
+        let backward = dir.map(|d| _mm256_cmp_pd::<_CMP_LT_OQ>(d, zero));
+        let t_max = [0, 1, 2].map(|a| {
+            let border = _mm256_blendv_pd(before[a], after[a], forward[a]);
+            let t = _mm256_div_pd(_mm256_sub_pd(border, origin[a]), dir[a]);
+            lanes(_mm256_blendv_pd(
+                none,
+                t,
+                _mm256_or_pd(forward[a], backward[a]),
+            ))
+        });
+        let t_delta = [0, 1, 2].map(|a| {
+            let t = _mm256_div_pd(splat(res), _mm256_andnot_pd(sign, dir[a]));
+            lanes(_mm256_blendv_pd(
+                none,
+                t,
+                _mm256_or_pd(forward[a], backward[a]),
+            ))
+        });
+        let forward = forward.map(|m| _mm256_movemask_pd(m));
+        let backward = backward.map(|m| _mm256_movemask_pd(m));
+        let length = lanes(length);
+        for (lane, end) in ends.iter().enumerate() {
+            if inside & 1 << lane == 0 {
+                continue;
+            }
+            let key = Key(key.map(|k| k[lane] as u16));
+            if end.hit {
+                mark(&dense.occupied.bits, dense.occupied.index(&key));
+            }
+            let dda = Dda {
+                length: length[lane],
+                step: [0, 1, 2].map(|a| (forward[a] >> lane & 1) - (backward[a] >> lane & 1)),
+                t_max: t_max.map(|t| t[lane]),
+                t_delta: t_delta.map(|t| t[lane]),
+            };
+            walks.extend(dense.walk(&dda, dense.free.index(&key)));
+        }
+    }
+    walks.extend(four.remainder().iter().filter_map(|end| dense.begin(end)));
+}
+
+/// Four walks' state, lane `k` holding one ray (the fields of [`Walk`]).
+#[derive(Clone, Copy)]
+struct Lanes {
+    tx: __m256d,
+    ty: __m256d,
+    tz: __m256d,
+    dx: __m256d,
+    dy: __m256d,
+    dz: __m256d,
+    length: __m256d,
+    ix: __m256i,
+    iy: __m256i,
+    iz: __m256i,
+    index: __m256i,
+    stop: __m256i,
+}
+
+/// Marks the cells of every walk, as [`finish`] does one by one.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
+    let Some(first) = walks.first_chunk::<4>() else {
+        walks.iter().for_each(|w| finish(bits, *w));
+        return;
+    };
+    let mut lanes = Lanes::new(first);
+    let mut next = 4;
+    loop {
+        lanes.step();
+        let done = lanes.done();
+        let index = lanes.indices();
+        if done == 0 {
+            for i in index {
+                mark(bits, i as usize);
+            }
+            continue;
+        }
+        // A lane's ray ended: the lane takes the next ray.
+        let mut live = 0;
+        for (lane, &i) in index.iter().enumerate() {
+            if done & 1 << lane == 0 {
+                mark(bits, i as usize);
+                live |= 1 << lane;
+            } else if let Some(walk) = walks.get(next) {
+                lanes.set(lane, walk);
+                next += 1;
+                live |= 1 << lane;
+            }
+        }
+        if live != 0b1111 {
+            // No rays left for the lanes that ended: the others finish
+            // one by one.
+            for lane in (0..4).filter(|lane| live & 1 << lane != 0) {
+                finish(bits, lanes.get(lane));
+            }
+            return;
+        }
+    }
+}
+
+impl Lanes {
+    #[target_feature(enable = "avx2")]
+    fn new(walks: &[Walk; 4]) -> Self {
+        let f = |field: fn(&Walk) -> f64| {
+            _mm256_setr_pd(
+                field(&walks[0]),
+                field(&walks[1]),
+                field(&walks[2]),
+                field(&walks[3]),
+            )
+        };
+        let i = |field: fn(&Walk) -> isize| {
+            _mm256_setr_epi64x(
+                field(&walks[0]) as i64,
+                field(&walks[1]) as i64,
+                field(&walks[2]) as i64,
+                field(&walks[3]) as i64,
+            )
+        };
+        Lanes {
+            tx: f(|w| w.t_max[0]),
+            ty: f(|w| w.t_max[1]),
+            tz: f(|w| w.t_max[2]),
+            dx: f(|w| w.t_delta[0]),
+            dy: f(|w| w.t_delta[1]),
+            dz: f(|w| w.t_delta[2]),
+            length: f(|w| w.length),
+            ix: i(|w| w.steps[0]),
+            iy: i(|w| w.steps[1]),
+            iz: i(|w| w.steps[2]),
+            index: i(|w| w.index),
+            stop: i(|w| w.stop),
+        }
+    }
+
+    /// One step of every lane: x if before y and z, else z; y if before
+    /// z, else z (OctoMap's choice, as in [`finish`]).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn step(&mut self) {
+        let x_before_y = _mm256_cmp_pd::<_CMP_LT_OQ>(self.tx, self.ty);
+        let x_before_z = _mm256_cmp_pd::<_CMP_LT_OQ>(self.tx, self.tz);
+        let y_before_z = _mm256_cmp_pd::<_CMP_LT_OQ>(self.ty, self.tz);
+        let x = _mm256_and_pd(x_before_y, x_before_z);
+        let y = _mm256_andnot_pd(x_before_y, y_before_z);
+        let x_or_y = _mm256_or_pd(x, y);
+        self.tx = _mm256_add_pd(self.tx, _mm256_and_pd(x, self.dx));
+        self.ty = _mm256_add_pd(self.ty, _mm256_and_pd(y, self.dy));
+        self.tz = _mm256_add_pd(self.tz, _mm256_andnot_pd(x_or_y, self.dz));
+        let (x, y, x_or_y) = (
+            _mm256_castpd_si256(x),
+            _mm256_castpd_si256(y),
+            _mm256_castpd_si256(x_or_y),
+        );
+        let step = _mm256_or_si256(
+            _mm256_or_si256(_mm256_and_si256(x, self.ix), _mm256_and_si256(y, self.iy)),
+            _mm256_andnot_si256(x_or_y, self.iz),
+        );
+        self.index = _mm256_add_epi64(self.index, step);
+    }
+
+    /// The lanes whose walk has ended (bit `k` for lane `k`): at the end
+    /// cell, or past the segment's length on every axis.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn done(&self) -> i32 {
+        let at_stop = _mm256_castsi256_pd(_mm256_cmpeq_epi64(self.index, self.stop));
+        // All three past the length: the least is (no t is NaN).
+        let least = _mm256_min_pd(_mm256_min_pd(self.tx, self.ty), self.tz);
+        let past = _mm256_cmp_pd::<_CMP_GT_OQ>(least, self.length);
+        _mm256_movemask_pd(_mm256_or_pd(at_stop, past))
+    }
+
+    /// The lanes' cells (bitmap indices).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn indices(&self) -> [i64; 4] {
+        [0, 1, 2, 3].map(|lane| lane_of(self.index, lane))
+    }
+
+    /// Puts `walk` in `lane`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn set(&mut self, lane: usize, walk: &Walk) {
+        let mask = _mm256_cmpeq_epi64(
+            _mm256_setr_epi64x(0, 1, 2, 3),
+            _mm256_set1_epi64x(lane as i64),
+        );
+        let f = |old: __m256d, new: f64| {
+            _mm256_blendv_pd(old, _mm256_set1_pd(new), _mm256_castsi256_pd(mask))
+        };
+        let i = |old: __m256i, new: isize| {
+            _mm256_blendv_epi8(old, _mm256_set1_epi64x(new as i64), mask)
+        };
+        self.tx = f(self.tx, walk.t_max[0]);
+        self.ty = f(self.ty, walk.t_max[1]);
+        self.tz = f(self.tz, walk.t_max[2]);
+        self.dx = f(self.dx, walk.t_delta[0]);
+        self.dy = f(self.dy, walk.t_delta[1]);
+        self.dz = f(self.dz, walk.t_delta[2]);
+        self.length = f(self.length, walk.length);
+        self.ix = i(self.ix, walk.steps[0]);
+        self.iy = i(self.iy, walk.steps[1]);
+        self.iz = i(self.iz, walk.steps[2]);
+        self.index = i(self.index, walk.index);
+        self.stop = i(self.stop, walk.stop);
+    }
+
+    /// The walk in `lane`, where it stands.
+    #[target_feature(enable = "avx2")]
+    fn get(&self, lane: usize) -> Walk {
+        let f = |v: __m256d| f64::from_bits(lane_of(_mm256_castpd_si256(v), lane) as u64);
+        let i = |v: __m256i| lane_of(v, lane) as isize;
+        Walk {
+            t_max: [f(self.tx), f(self.ty), f(self.tz)],
+            t_delta: [f(self.dx), f(self.dy), f(self.dz)],
+            length: f(self.length),
+            steps: [i(self.ix), i(self.iy), i(self.iz)],
+            index: i(self.index),
+            stop: i(self.stop),
+        }
+    }
+}
+
+/// Lane `lane` of `v`, by value (an index into the vector's memory would
+/// keep the lanes' state out of registers).
+#[target_feature(enable = "avx2")]
+#[inline]
+fn lane_of(v: __m256i, lane: usize) -> i64 {
+    match lane {
+        0 => _mm256_extract_epi64::<0>(v),
+        1 => _mm256_extract_epi64::<1>(v),
+        2 => _mm256_extract_epi64::<2>(v),
+        _ => _mm256_extract_epi64::<3>(v),
+    }
+}
