@@ -141,11 +141,14 @@ fn mark(bits: &[AtomicU64], i: usize) -> bool {
 /// A set of cells of one scan: a bitmap over the scan's bounding box of keys
 /// when it is small enough (the usual case), a hash set otherwise; either way
 /// it also lists the Morton codes of its cells. The bitmap's words are atomic
-/// so that rays can be walked in parallel.
+/// so that rays can be walked in parallel; its rows (along x) are padded to
+/// whole words, so that a word holds cells of one row.
 #[derive(Default)]
 struct CellSet {
     min: [u16; 3],
     dims: [usize; 3],
+    /// Bits per row: `dims[0]` rounded up to a multiple of 64.
+    row: usize,
     bits: Vec<AtomicU64>,
     hashed: FxHashSet<u64>,
     dense: bool,
@@ -167,21 +170,21 @@ impl CellSet {
     fn reset(&mut self, min: [u16; 3], max: [u16; 3], dense_limit: usize) {
         self.min = min;
         self.dims = std::array::from_fn(|a| (max[a] - min[a]) as usize + 1);
-        let volume = self.dims.iter().product::<usize>();
+        self.row = self.dims[0].next_multiple_of(64);
+        let volume = self.row * self.dims[1] * self.dims[2];
         self.dense = volume <= dense_limit;
         self.codes.clear();
         self.hashed.clear();
         if self.dense {
             self.bits.clear();
-            self.bits
-                .resize_with(volume.div_ceil(64), AtomicU64::default);
+            self.bits.resize_with(volume / 64, AtomicU64::default);
         }
     }
 
     #[inline]
     fn index(&self, key: &Key) -> usize {
         let [x, y, z] = std::array::from_fn(|a| (key.0[a] - self.min[a]) as usize);
-        (z * self.dims[1] + y) * self.dims[0] + x
+        (z * self.dims[1] + y) * self.row + x
     }
 
     #[inline]
@@ -201,17 +204,17 @@ impl CellSet {
     /// order, the free ones that are also occupied left out.
     fn list_marked(&mut self, occupied: &mut CellSet) {
         debug_assert!(occupied.dense && occupied.min == self.min && occupied.dims == self.dims);
-        let [nx, ny, _] = self.dims;
-        let min = self.min;
-        let code = |i: usize| {
-            let (x, rest) = (i % nx, i / nx);
-            let (y, z) = (rest % ny, rest / ny);
-            let offset = [x, y, z];
-            Key(std::array::from_fn(|a| min[a] + offset[a] as u16)).morton()
-        };
-        let list = |mut bits: u64, base: usize, codes: &mut Vec<u64>| {
+        let (words_per_row, ny, min) = (self.row / 64, self.dims[1], self.min);
+        // The cells of word `w`'s set bits: one row, so y and z once a word.
+        let list = |mut bits: u64, w: usize, codes: &mut Vec<u64>| {
+            if bits == 0 {
+                return;
+            }
+            let (row, x) = (w / words_per_row, (w % words_per_row) * 64);
+            let (y, z) = (min[1] + (row % ny) as u16, min[2] + (row / ny) as u16);
             while bits != 0 {
-                codes.push(code(base + bits.trailing_zeros() as usize));
+                let x = min[0] + (x + bits.trailing_zeros() as usize) as u16;
+                codes.push(Key([x, y, z]).morton());
                 bits &= bits - 1;
             }
         };
@@ -223,10 +226,10 @@ impl CellSet {
             .map(|(task, (free, occupied))| {
                 let (mut free_codes, mut occupied_codes) = (Vec::new(), Vec::new());
                 for (w, (free, occupied)) in free.iter().zip(occupied).enumerate() {
-                    let base = (task * WORDS_PER_TASK + w) * 64;
+                    let w = task * WORDS_PER_TASK + w;
                     let occupied = occupied.load(Relaxed);
-                    list(free.load(Relaxed) & !occupied, base, &mut free_codes);
-                    list(occupied, base, &mut occupied_codes);
+                    list(free.load(Relaxed) & !occupied, w, &mut free_codes);
+                    list(occupied, w, &mut occupied_codes);
                 }
                 (free_codes, occupied_codes)
             })
@@ -242,8 +245,8 @@ impl CellSet {
     fn stride(&self, axis: usize) -> isize {
         match axis {
             0 => 1,
-            1 => self.dims[0] as isize,
-            _ => (self.dims[0] * self.dims[1]) as isize,
+            1 => self.row as isize,
+            _ => (self.row * self.dims[1]) as isize,
         }
     }
 
@@ -256,6 +259,60 @@ impl CellSet {
             self.hashed.contains(&key.packed())
         }
     }
+}
+
+/// The smallest box of keys holding the origin's (`start`) and the end
+/// point's of every ray ([`RayEnd`]) that ends in the tree: the keys of
+/// the end points' least and greatest coordinates (keys grow with
+/// coordinates), or, when one of those lies outside the tree, the keys one
+/// by one.
+fn key_box(
+    tree: &Octree,
+    start: Key,
+    origin: &Point3,
+    hits: &[Point3],
+    misses: &[Vector3],
+    max_range: f64,
+) -> ([u16; 3], [u16; 3]) {
+    let ends = || {
+        let hits = hits
+            .par_iter()
+            .map(|p| RayEnd::of_hit(origin, p, max_range));
+        hits.chain(
+            misses
+                .par_iter()
+                .map(|d| RayEnd::of_miss(origin, d, max_range)),
+        )
+    };
+    // (Least and greatest are exact whatever the order: the same box for
+    // every thread count.)
+    let (least, greatest) = ends()
+        .fold(
+            || (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3])),
+            |(l, g), e| (l.inf(&e.point), g.sup(&e.point)),
+        )
+        .reduce(
+            || (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3])),
+            |(l, g), (m, h)| (l.inf(&m), g.sup(&h)),
+        );
+    let (mut lo, mut hi) = (start.0, start.0);
+    let mut widen = |k: Key| {
+        for a in 0..3 {
+            lo[a] = lo[a].min(k.0[a]);
+            hi[a] = hi[a].max(k.0[a]);
+        }
+    };
+    match (tree.key(&least), tree.key(&greatest)) {
+        (Some(l), Some(g)) => {
+            widen(l);
+            widen(g);
+        }
+        _ => {
+            let keys: Vec<Key> = ends().filter_map(|e| tree.key(&e.point)).collect();
+            keys.into_iter().for_each(widen);
+        }
+    }
+    (lo, hi)
 }
 
 /// OctoMap's per-scan cell update: `hit` (log-odds) where a beam ended,
@@ -297,7 +354,6 @@ pub struct RayUpdater {
     one_at_a_time: bool,
     free: CellSet,
     occupied: CellSet,
-    ends: Vec<RayEnd>,
 }
 
 /// Where one ray of a scan ends: the point, and whether it is a measured
@@ -305,6 +361,43 @@ pub struct RayUpdater {
 struct RayEnd {
     point: Point3,
     hit: bool,
+}
+
+impl RayEnd {
+    /// The ray of a measured point `hit`: to it, or, when it lies beyond
+    /// `max_range`, only carving up to that range (OctoMap's rule).
+    #[inline(always)]
+    fn of_hit(origin: &Point3, hit: &Point3, max_range: f64) -> Self {
+        let d = hit - origin;
+        let n = d.norm();
+        if n <= max_range {
+            RayEnd {
+                point: *hit,
+                hit: true,
+            }
+        } else {
+            RayEnd {
+                point: origin + d * (max_range / n),
+                hit: false,
+            }
+        }
+    }
+
+    /// The ray of a beam without return along `direction` (unit): carving
+    /// up to `max_range`.
+    #[inline(always)]
+    fn of_miss(origin: &Point3, direction: &Vector3, max_range: f64) -> Self {
+        RayEnd {
+            point: origin + direction * max_range,
+            hit: false,
+        }
+    }
+}
+
+/// A scan's rays, to be walked in parallel: a run of hits or of misses.
+enum Rays<'a> {
+    Hits(&'a [Point3]),
+    Misses(&'a [Vector3]),
 }
 
 impl RayUpdater {
@@ -348,32 +441,16 @@ impl RayUpdater {
         // Nothing of the previous scan may be applied again.
         self.free.codes.clear();
         self.occupied.codes.clear();
-        self.ends.clear();
-        for p in hits {
-            let d = p - origin;
-            let n = d.norm();
-            self.ends.push(if n <= max_range {
-                RayEnd {
-                    point: *p,
-                    hit: true,
-                }
-            } else {
-                RayEnd {
-                    point: origin + d * (max_range / n),
-                    hit: false,
-                }
-            });
-        }
-        self.ends.extend(misses.iter().map(|d| RayEnd {
-            point: origin + d * max_range,
-            hit: false,
-        }));
         let Some(start) = tree.key(origin) else {
             return;
         };
+        let ends = || {
+            let hits = hits.iter().map(|p| RayEnd::of_hit(origin, p, max_range));
+            hits.chain(misses.iter().map(|d| RayEnd::of_miss(origin, d, max_range)))
+        };
         // The box of the scan's keys, one cell wider on every side: a walk
         // may end one cell past its end point's (numerical error).
-        let (lo, hi) = self.key_box(tree, start);
+        let (lo, hi) = key_box(tree, start, origin, hits, misses, max_range);
         let lo = lo.map(|v| v.saturating_sub(1));
         let hi = hi.map(|v| v.saturating_add(1));
         let dense_limit = self.dense_limit.unwrap_or(DENSE_LIMIT);
@@ -387,6 +464,7 @@ impl RayUpdater {
             let dense = DenseWalk {
                 tree,
                 origin: *origin,
+                max_range,
                 centre: tree.center(&start, 16),
                 start: self.free.index(&start),
                 free: &self.free,
@@ -394,25 +472,28 @@ impl RayUpdater {
                 strides: std::array::from_fn(|axis| self.free.stride(axis)),
                 lanes: !self.one_at_a_time,
             };
-            self.ends
-                .par_chunks(RAYS_PER_TASK)
-                .for_each_init(Vec::new, |walks, chunk| {
-                    walks.clear();
-                    dense.begin_all(chunk, walks);
-                    dense.mark_rays(walks);
-                });
+            let hits = hits.par_chunks(RAYS_PER_TASK).map(Rays::Hits);
+            let misses = misses.par_chunks(RAYS_PER_TASK).map(Rays::Misses);
+            hits.chain(misses).for_each_init(Vec::new, |walks, rays| {
+                walks.clear();
+                match rays {
+                    Rays::Hits(hits) => dense.begin_hits(hits, walks),
+                    Rays::Misses(misses) => dense.begin_misses(misses, walks),
+                }
+                dense.mark_rays(walks);
+            });
             // Occupied wins.
             self.free.list_marked(&mut self.occupied);
         } else {
             let free = &mut self.free;
-            for e in &self.ends {
+            for e in ends() {
                 if let Some(stop) = tree.key(&e.point) {
                     walk_keys(tree, origin, start, &e.point, stop, |k| {
                         free.insert(&Key::unpack(k))
                     });
                 }
             }
-            for e in self.ends.iter().filter(|e| e.hit) {
+            for e in ends().filter(|e| e.hit) {
                 if let Some(k) = tree.key(&e.point) {
                     self.occupied.insert(&k);
                 }
@@ -426,41 +507,6 @@ impl RayUpdater {
         // Updates in depth-first (Morton) order, one walk each.
         radsort::sort(&mut self.free.codes);
         radsort::sort(&mut self.occupied.codes);
-    }
-
-    /// The smallest box of keys holding the origin's (`start`) and every
-    /// end point's that lies in the tree: the keys of the points' least
-    /// and greatest coordinates (keys grow with coordinates), or, when one
-    /// of those lies outside the tree, the keys one by one.
-    fn key_box(&self, tree: &Octree, start: Key) -> ([u16; 3], [u16; 3]) {
-        let (mut lo, mut hi) = (start.0, start.0);
-        let mut widen = |k: Key| {
-            for a in 0..3 {
-                lo[a] = lo[a].min(k.0[a]);
-                hi[a] = hi[a].max(k.0[a]);
-            }
-        };
-        let Some(first) = self.ends.first() else {
-            return (lo, hi);
-        };
-        let (least, greatest) = self
-            .ends
-            .iter()
-            .fold((first.point, first.point), |(l, g), e| {
-                (l.inf(&e.point), g.sup(&e.point))
-            });
-        match (tree.key(&least), tree.key(&greatest)) {
-            (Some(l), Some(g)) => {
-                widen(l);
-                widen(g);
-            }
-            _ => self
-                .ends
-                .iter()
-                .filter_map(|e| tree.key(&e.point))
-                .for_each(widen),
-        }
-        (lo, hi)
     }
 
     /// The second half of [`RayUpdater::insert_scan`]: the cells found by

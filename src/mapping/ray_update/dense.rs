@@ -5,7 +5,7 @@
 //! list their cells afterwards ([`CellSet::list_marked`]).
 
 use super::{mark, CellSet, Dda, RayEnd};
-use crate::geometry::Point3;
+use crate::geometry::{Point3, Vector3};
 use crate::mapping::octree::Octree;
 use std::sync::atomic::AtomicU64;
 
@@ -14,6 +14,7 @@ use std::sync::atomic::AtomicU64;
 pub(super) struct DenseWalk<'a> {
     pub tree: &'a Octree,
     pub origin: Point3,
+    pub max_range: f64,
     /// The centre of the origin's cell.
     pub centre: Point3,
     /// The origin's cell, as a bitmap index.
@@ -41,20 +42,39 @@ pub(super) struct Walk {
 }
 
 impl DenseWalk<'_> {
-    /// Each ray of `ends` whose end lies in the tree: its end cell marked
-    /// occupied if it is a hit, and its walk, first cell marked, appended
-    /// to `walks` (none when it ends in the origin's cell).
-    pub fn begin_all(&self, ends: &[RayEnd], walks: &mut Vec<Walk>) {
+    /// The ray of each of `hits` ([`RayEnd::of_hit`]) that ends in the
+    /// tree: its end cell marked occupied if it is a hit, and its walk,
+    /// first cell marked, appended to `walks` (none when it ends in the
+    /// origin's cell).
+    pub fn begin_hits(&self, hits: &[Point3], walks: &mut Vec<Walk>) {
         #[cfg(target_arch = "x86_64")]
         if self.lanes && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above).
-            unsafe { super::lanes::begin_all(self, ends, walks) };
+            unsafe { super::lanes::begin_hits(self, hits, walks) };
             return;
         }
-        walks.extend(ends.iter().filter_map(|end| self.begin(end)));
+        let ends = hits
+            .iter()
+            .map(|p| RayEnd::of_hit(&self.origin, p, self.max_range));
+        walks.extend(ends.filter_map(|end| self.begin(&end)));
     }
 
-    /// [`DenseWalk::begin_all`] of one ray.
+    /// [`DenseWalk::begin_hits`] for beams without return
+    /// ([`RayEnd::of_miss`]).
+    pub fn begin_misses(&self, misses: &[Vector3], walks: &mut Vec<Walk>) {
+        #[cfg(target_arch = "x86_64")]
+        if self.lanes && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            unsafe { super::lanes::begin_misses(self, misses, walks) };
+            return;
+        }
+        let ends = misses
+            .iter()
+            .map(|d| RayEnd::of_miss(&self.origin, d, self.max_range));
+        walks.extend(ends.filter_map(|end| self.begin(&end)));
+    }
+
+    /// [`DenseWalk::begin_hits`] of one ray.
     #[inline(always)]
     pub fn begin(&self, end: &RayEnd) -> Option<Walk> {
         let key = self.tree.key(&end.point)?;

@@ -8,19 +8,91 @@
 
 use super::dense::{finish, DenseWalk, Walk};
 use super::{mark, Dda, RayEnd};
+use crate::geometry::{Point3, Vector3};
 use crate::mapping::octree::{Key, CENTER};
 use std::arch::x86_64::*;
 use std::sync::atomic::AtomicU64;
 
-/// [`DenseWalk::begin_all`], four rays at a time: the end cells' keys
-/// ([`Octree::key`](crate::mapping::octree::Octree::key)) and the walks'
-/// set-up ([`Dda::new`]) with the same operations lane by lane (a dozen
-/// divisions and a square root per ray, four to an instruction here).
+/// [`DenseWalk::begin_hits`], four rays at a time: the rays' ends as
+/// [`RayEnd::of_hit`] finds them, then [`begin_four`].
 ///
 /// # Safety
 /// The CPU must have AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn begin_all(dense: &DenseWalk, ends: &[RayEnd], walks: &mut Vec<Walk>) {
+pub(super) unsafe fn begin_hits(dense: &DenseWalk, hits: &[Point3], walks: &mut Vec<Walk>) {
+    let origin = [0, 1, 2].map(|a| _mm256_set1_pd(dense.origin[a]));
+    let max_range = _mm256_set1_pd(dense.max_range);
+    let mut four = hits.chunks_exact(4);
+    for hits in &mut four {
+        let point =
+            [0, 1, 2].map(|a| _mm256_setr_pd(hits[0][a], hits[1][a], hits[2][a], hits[3][a]));
+        let diff = [0, 1, 2].map(|a| _mm256_sub_pd(point[a], origin[a]));
+        let within = _mm256_cmp_pd::<_CMP_LE_OQ>(norm(diff), max_range);
+        if _mm256_movemask_pd(within) == 0b1111 {
+            // SAFETY: the caller's.
+            unsafe { begin_four(dense, point, 0b1111, walks) };
+        } else {
+            // Some beyond max range (rare): one by one.
+            let ends = hits
+                .iter()
+                .map(|p| RayEnd::of_hit(&dense.origin, p, dense.max_range));
+            walks.extend(ends.filter_map(|end| dense.begin(&end)));
+        }
+    }
+    let ends = four
+        .remainder()
+        .iter()
+        .map(|p| RayEnd::of_hit(&dense.origin, p, dense.max_range));
+    walks.extend(ends.filter_map(|end| dense.begin(&end)));
+}
+
+/// [`DenseWalk::begin_misses`], four rays at a time: the rays' ends as
+/// [`RayEnd::of_miss`] finds them, then [`begin_four`].
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn begin_misses(dense: &DenseWalk, misses: &[Vector3], walks: &mut Vec<Walk>) {
+    let origin = [0, 1, 2].map(|a| _mm256_set1_pd(dense.origin[a]));
+    let max_range = _mm256_set1_pd(dense.max_range);
+    let mut four = misses.chunks_exact(4);
+    for misses in &mut four {
+        let point = [0, 1, 2].map(|a| {
+            let d = _mm256_setr_pd(misses[0][a], misses[1][a], misses[2][a], misses[3][a]);
+            _mm256_add_pd(origin[a], _mm256_mul_pd(d, max_range))
+        });
+        // SAFETY: the caller's.
+        unsafe { begin_four(dense, point, 0, walks) };
+    }
+    let ends = four
+        .remainder()
+        .iter()
+        .map(|d| RayEnd::of_miss(&dense.origin, d, dense.max_range));
+    walks.extend(ends.filter_map(|end| dense.begin(&end)));
+}
+
+/// `|v|` lane by lane, as nalgebra's `norm` computes it: √((x² + y²) + z²).
+#[target_feature(enable = "avx2")]
+#[inline]
+fn norm(v: [__m256d; 3]) -> __m256d {
+    let squares = v.map(|d| _mm256_mul_pd(d, d));
+    _mm256_sqrt_pd(_mm256_add_pd(
+        _mm256_add_pd(squares[0], squares[1]),
+        squares[2],
+    ))
+}
+
+/// [`DenseWalk::begin`] of four rays ending at `point` (lanes; hits where
+/// bit `k` of `hit` is set): the end cells' keys ([`Octree::key`](crate::mapping::octree::Octree::key))
+/// and the walks' set-up ([`Dda::new`]) with the same operations lane by
+/// lane (a dozen divisions and a square root per ray, four to an
+/// instruction here).
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn begin_four(dense: &DenseWalk, point: [__m256d; 3], hit: i32, walks: &mut Vec<Walk>) {
     let res = dense.tree.resolution();
     let splat = |v: f64| _mm256_set1_pd(v);
     let origin = [0, 1, 2].map(|a| splat(dense.origin[a]));
@@ -34,16 +106,7 @@ pub(super) unsafe fn begin_all(dense: &DenseWalk, ends: &[RayEnd], walks: &mut V
         // SAFETY: four f64 lanes, any bit pattern valid.
         unsafe { std::mem::transmute::<__m256d, [f64; 4]>(v) }
     };
-    let mut four = ends.chunks_exact(4);
-    for ends in &mut four {
-        let point = [0, 1, 2].map(|a| {
-            _mm256_setr_pd(
-                ends[0].point[a],
-                ends[1].point[a],
-                ends[2].point[a],
-                ends[3].point[a],
-            )
-        });
+    {
         // The end cells' keys: floor(p / res) + CENTER where |p / res| <
         // 1e9 and the key fits 16 bits (else the ray is not walked).
         let mut inside = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
@@ -61,11 +124,7 @@ pub(super) unsafe fn begin_all(dense: &DenseWalk, ends: &[RayEnd], walks: &mut V
         let inside = _mm256_movemask_pd(inside);
         // The walks' set-up.
         let diff = [0, 1, 2].map(|a| _mm256_sub_pd(point[a], origin[a]));
-        let squares = diff.map(|d| _mm256_mul_pd(d, d));
-        let length = _mm256_sqrt_pd(_mm256_add_pd(
-            _mm256_add_pd(squares[0], squares[1]),
-            squares[2],
-        ));
+        let length = norm(diff);
         let dir = diff.map(|d| _mm256_div_pd(d, length));
         let forward = dir.map(|d| _mm256_cmp_pd::<_CMP_GT_OQ>(d, zero));
         let backward = dir.map(|d| _mm256_cmp_pd::<_CMP_LT_OQ>(d, zero));
@@ -89,12 +148,12 @@ pub(super) unsafe fn begin_all(dense: &DenseWalk, ends: &[RayEnd], walks: &mut V
         let forward = forward.map(|m| _mm256_movemask_pd(m));
         let backward = backward.map(|m| _mm256_movemask_pd(m));
         let length = lanes(length);
-        for (lane, end) in ends.iter().enumerate() {
+        for lane in 0..4 {
             if inside & 1 << lane == 0 {
                 continue;
             }
             let key = Key(key.map(|k| k[lane] as u16));
-            if end.hit {
+            if hit & 1 << lane != 0 {
                 mark(&dense.occupied.bits, dense.occupied.index(&key));
             }
             let dda = Dda {
@@ -106,7 +165,6 @@ pub(super) unsafe fn begin_all(dense: &DenseWalk, ends: &[RayEnd], walks: &mut V
             walks.extend(dense.walk(&dda, dense.free.index(&key)));
         }
     }
-    walks.extend(four.remainder().iter().filter_map(|end| dense.begin(end)));
 }
 
 /// Four walks' state, lane `k` holding one ray (the fields of [`Walk`]).

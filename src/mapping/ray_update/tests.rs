@@ -238,15 +238,19 @@ fn a_custom_rule_sets_the_steps_and_the_clamp() {
     assert_eq!(at(&tree, 0.55), Some(0.375), "clamped above");
 }
 
-/// Random end points around `origin` with the awkward ones: on cell
+/// Random measured points around `origin` with the awkward ones: on cell
 /// borders, level with the origin on one or two axes (no steps there),
-/// in the origin's cell, outside the tree.
-fn awkward_ends(origin: &Point3, res: f64, n: usize, seed: u64) -> Vec<RayEnd> {
+/// in the origin's cell, outside the tree, NaN; a third beyond 2 m.
+fn awkward_hits(origin: &Point3, res: f64, n: usize, seed: u64) -> Vec<Point3> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let mut ends: Vec<RayEnd> = (0..n)
+    let mut hits: Vec<Point3> = (0..n)
         .map(|i| {
-            let mut p = origin + Vector3::new(rng.random(), rng.random(), rng.random()) * 3.0
-                - Vector3::repeat(1.5);
+            // The first half within 2 m (a cube of ±1.1 m), the rest within
+            // ±2.5 m, most beyond 2 m.
+            let half = if i < n / 2 { 1.1 } else { 2.5 };
+            let p =
+                Vector3::new(rng.random(), rng.random(), rng.random()) * 2.0 - Vector3::repeat(1.0);
+            let mut p = origin + p * half;
             match i % 7 {
                 0 => p.x = (p.x / res).round() * res,
                 1 => p.y = origin.y,
@@ -254,21 +258,30 @@ fn awkward_ends(origin: &Point3, res: f64, n: usize, seed: u64) -> Vec<RayEnd> {
                 3 => p = origin + (p - origin) * 1e-3,
                 _ => {}
             }
-            RayEnd {
-                point: p,
-                hit: i % 3 != 0,
-            }
+            p
         })
         .collect();
-    ends.push(RayEnd {
-        point: Point3::new(1e7, 0.0, 0.0),
-        hit: true,
-    });
-    ends.push(RayEnd {
-        point: Point3::new(0.1, f64::NAN, 0.0),
-        hit: true,
-    });
-    ends
+    hits.push(Point3::new(1e7, 0.0, 0.0));
+    hits.push(Point3::new(0.1, f64::NAN, 0.0));
+    hits
+}
+
+/// Directions of beams without return, with axis-parallel ones.
+fn awkward_misses(n: usize, seed: u64) -> Vec<Vector3> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut misses: Vec<Vector3> = (0..n)
+        .map(|_| {
+            (Vector3::new(rng.random(), rng.random(), rng.random()) - Vector3::repeat(0.5))
+                .normalize()
+        })
+        .collect();
+    misses.extend([
+        Vector3::x(),
+        -Vector3::y(),
+        Vector3::z(),
+        Vector3::new(0.6, 0.0, -0.8),
+    ]);
+    misses
 }
 
 #[test]
@@ -277,26 +290,39 @@ fn four_lanes_set_up_and_walk_rays_bit_for_bit_as_one_at_a_time() {
     if !std::arch::is_x86_feature_detected!("avx2") {
         eprintln!("no AVX2 on this CPU: both ways walk one ray at a time");
     }
-    let res = 0.05;
+    let (res, max_range) = (0.05, 2.0);
     let tree = Octree::new(res);
     let origin = Point3::new(0.013, -0.031, 0.257);
     let start = tree.key(&origin).unwrap();
-    // 4001 ends: the last chunk of four is a partial one.
-    let ends = awkward_ends(&origin, res, 3999, 5);
-    let (mut lo, mut hi) = (start.0, start.0);
-    for k in ends.iter().filter_map(|e| tree.key(&e.point)) {
-        for a in 0..3 {
-            lo[a] = lo[a].min(k.0[a] - 1);
-            hi[a] = hi[a].max(k.0[a] + 1);
-        }
-    }
+    // 4001 hits and 1003 misses: the last chunks of four are partial.
+    let hits = awkward_hits(&origin, res, 3999, 5);
+    let misses = awkward_misses(999, 6);
+    let ends = hits.iter().map(|p| RayEnd::of_hit(&origin, p, max_range));
+    let ends: Vec<RayEnd> = ends
+        .chain(
+            misses
+                .iter()
+                .map(|d| RayEnd::of_miss(&origin, d, max_range)),
+        )
+        .collect();
+    assert!(ends.iter().filter(|e| e.hit).count() > 1000);
+    assert!(
+        hits.iter()
+            .filter(|p| (*p - origin).norm() > max_range)
+            .count()
+            > 200
+    );
+    let (lo, hi) = key_box(&tree, start, &origin, &hits, &misses, max_range);
     let walked = |lanes: bool| {
         let (mut free, mut occupied) = (CellSet::default(), CellSet::default());
+        let lo = lo.map(|v| v - 1);
+        let hi = hi.map(|v| v + 1);
         free.reset(lo, hi, DENSE_LIMIT);
         occupied.reset(lo, hi, DENSE_LIMIT);
         let dense = DenseWalk {
             tree: &tree,
             origin,
+            max_range,
             centre: tree.center(&start, 16),
             start: free.index(&start),
             free: &free,
@@ -305,7 +331,8 @@ fn four_lanes_set_up_and_walk_rays_bit_for_bit_as_one_at_a_time() {
             lanes,
         };
         let mut walks = Vec::new();
-        dense.begin_all(&ends, &mut walks);
+        dense.begin_hits(&hits, &mut walks);
+        dense.begin_misses(&misses, &mut walks);
         // Bit for bit, -0.0 and 0.0 apart.
         let set_up = format!("{walks:?}");
         dense.mark_rays(&walks);
@@ -314,7 +341,7 @@ fn four_lanes_set_up_and_walk_rays_bit_for_bit_as_one_at_a_time() {
         (walks.len(), set_up, bits(&free), bits(&occupied))
     };
     let (four, one) = (walked(true), walked(false));
-    assert!(four.0 > 3000, "{} walks", four.0);
+    assert!(four.0 > 4000, "{} walks", four.0);
     assert_eq!(four.1, one.1, "the walks' set-up");
     assert!(four.2 == one.2, "the free cells");
     assert!(four.3 == one.3, "the occupied cells");
@@ -326,13 +353,12 @@ fn a_scan_with_ends_outside_the_tree_walks_the_others() {
     // no key, so the box of keys is found key by key.
     let res = 0.05;
     let origin = Point3::new(1637.9, 0.01, -0.02);
-    let hits: Vec<Point3> = awkward_ends(&origin, res, 400, 9)
-        .iter()
-        .map(|e| e.point)
+    let hits: Vec<Point3> = awkward_hits(&origin, res, 400, 9)
+        .into_iter()
         .filter(|p| !p.x.is_nan() && p.x < 1e6)
         .collect();
     assert!(hits.iter().any(|p| Octree::new(res).key(p).is_none()));
-    let misses = [Vector3::x(), -Vector3::x(), Vector3::new(0.6, 0.8, 0.0)];
+    let misses = awkward_misses(20, 10);
     let mut reference = Octree::new(res);
     reference_scan(&mut reference, &origin, &hits, &misses, 2.0);
     assert!(reference.leaves().len() > 100);
