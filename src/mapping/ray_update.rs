@@ -274,14 +274,21 @@ fn key_box(
     misses: &[Vector3],
     max_range: f64,
 ) -> ([u16; 3], [u16; 3]) {
+    // A hit surely within max range (its squared distance below the square
+    // of a hair less than that range) ends at itself: no square root. (The
+    // box would hold every end even if not: the origin is in it, and a
+    // truncated end lies between the origin and its hit.)
+    let surely_within = (max_range * (1.0 - 1e-9)).powi(2);
+    let end_of_hit = |p: &Point3| match (p - origin).norm_squared() <= surely_within {
+        true => *p,
+        false => RayEnd::of_hit(origin, p, max_range).point,
+    };
     let ends = || {
-        let hits = hits
-            .par_iter()
-            .map(|p| RayEnd::of_hit(origin, p, max_range));
+        let hits = hits.par_iter().map(end_of_hit);
         hits.chain(
             misses
                 .par_iter()
-                .map(|d| RayEnd::of_miss(origin, d, max_range)),
+                .map(|d| RayEnd::of_miss(origin, d, max_range).point),
         )
     };
     // (Least and greatest are exact whatever the order: the same box for
@@ -289,7 +296,7 @@ fn key_box(
     let (least, greatest) = ends()
         .fold(
             || (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3])),
-            |(l, g), e| (l.inf(&e.point), g.sup(&e.point)),
+            |(l, g), e| (l.inf(&e), g.sup(&e)),
         )
         .reduce(
             || (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3])),
@@ -308,7 +315,7 @@ fn key_box(
             widen(g);
         }
         _ => {
-            let keys: Vec<Key> = ends().filter_map(|e| tree.key(&e.point)).collect();
+            let keys: Vec<Key> = ends().filter_map(|e| tree.key(&e)).collect();
             keys.into_iter().for_each(widen);
         }
     }

@@ -20,13 +20,14 @@ use std::sync::atomic::AtomicU64;
 /// The CPU must have AVX2.
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn begin_hits(dense: &DenseWalk, hits: &[Point3], walks: &mut Vec<Walk>) {
-    let origin = [0, 1, 2].map(|a| _mm256_set1_pd(dense.origin[a]));
     let max_range = _mm256_set1_pd(dense.max_range);
     let mut four = hits.chunks_exact(4);
     for hits in &mut four {
-        let point =
-            [0, 1, 2].map(|a| _mm256_setr_pd(hits[0][a], hits[1][a], hits[2][a], hits[3][a]));
-        let diff = [0, 1, 2].map(|a| _mm256_sub_pd(point[a], origin[a]));
+        let (mut point, mut diff) = ([_mm256_setzero_pd(); 3], [_mm256_setzero_pd(); 3]);
+        for a in 0..3 {
+            point[a] = _mm256_setr_pd(hits[0][a], hits[1][a], hits[2][a], hits[3][a]);
+            diff[a] = _mm256_sub_pd(point[a], _mm256_set1_pd(dense.origin[a]));
+        }
         let within = _mm256_cmp_pd::<_CMP_LE_OQ>(norm(diff), max_range);
         if _mm256_movemask_pd(within) == 0b1111 {
             // SAFETY: the caller's.
@@ -53,14 +54,14 @@ pub(super) unsafe fn begin_hits(dense: &DenseWalk, hits: &[Point3], walks: &mut 
 /// The CPU must have AVX2.
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn begin_misses(dense: &DenseWalk, misses: &[Vector3], walks: &mut Vec<Walk>) {
-    let origin = [0, 1, 2].map(|a| _mm256_set1_pd(dense.origin[a]));
     let max_range = _mm256_set1_pd(dense.max_range);
     let mut four = misses.chunks_exact(4);
     for misses in &mut four {
-        let point = [0, 1, 2].map(|a| {
+        let mut point = [_mm256_setzero_pd(); 3];
+        for a in 0..3 {
             let d = _mm256_setr_pd(misses[0][a], misses[1][a], misses[2][a], misses[3][a]);
-            _mm256_add_pd(origin[a], _mm256_mul_pd(d, max_range))
-        });
+            point[a] = _mm256_add_pd(_mm256_set1_pd(dense.origin[a]), _mm256_mul_pd(d, max_range));
+        }
         // SAFETY: the caller's.
         unsafe { begin_four(dense, point, 0, walks) };
     }
@@ -93,78 +94,78 @@ fn norm(v: [__m256d; 3]) -> __m256d {
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn begin_four(dense: &DenseWalk, point: [__m256d; 3], hit: i32, walks: &mut Vec<Walk>) {
-    let res = dense.tree.resolution();
-    let splat = |v: f64| _mm256_set1_pd(v);
-    let origin = [0, 1, 2].map(|a| splat(dense.origin[a]));
-    // The borders of the origin's cell a walk first crosses, as `Dda::new`
-    // computes them: centre + step·res·0.5 for step ±1.
-    let after = [0, 1, 2].map(|a| splat(dense.centre[a] + res * 0.5));
-    let before = [0, 1, 2].map(|a| splat(dense.centre[a] + -res * 0.5));
-    let sign = splat(-0.0);
-    let (zero, none) = (_mm256_setzero_pd(), splat(f64::MAX));
-    let lanes = |v: __m256d| -> [f64; 4] {
-        // SAFETY: four f64 lanes, any bit pattern valid.
-        unsafe { std::mem::transmute::<__m256d, [f64; 4]>(v) }
-    };
-    {
-        // The end cells' keys: floor(p / res) + CENTER where |p / res| <
-        // 1e9 and the key fits 16 bits (else the ray is not walked).
-        let mut inside = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
-        let key = point.map(|p| {
-            let v = _mm256_div_pd(p, splat(res));
-            let near = _mm256_cmp_pd::<_CMP_LT_OQ>(_mm256_andnot_pd(sign, v), splat(1e9));
-            let key = _mm256_add_pd(_mm256_floor_pd(v), splat(CENTER as f64));
-            let fits = _mm256_and_pd(
-                _mm256_cmp_pd::<_CMP_GE_OQ>(key, zero),
-                _mm256_cmp_pd::<_CMP_LT_OQ>(key, splat(65536.0)),
-            );
-            inside = _mm256_and_pd(inside, _mm256_and_pd(near, fits));
-            lanes(key)
-        });
-        let inside = _mm256_movemask_pd(inside);
-        // The walks' set-up.
-        let diff = [0, 1, 2].map(|a| _mm256_sub_pd(point[a], origin[a]));
-        let length = norm(diff);
-        let dir = diff.map(|d| _mm256_div_pd(d, length));
-        let forward = dir.map(|d| _mm256_cmp_pd::<_CMP_GT_OQ>(d, zero));
-        let backward = dir.map(|d| _mm256_cmp_pd::<_CMP_LT_OQ>(d, zero));
-        let t_max = [0, 1, 2].map(|a| {
-            let border = _mm256_blendv_pd(before[a], after[a], forward[a]);
-            let t = _mm256_div_pd(_mm256_sub_pd(border, origin[a]), dir[a]);
-            lanes(_mm256_blendv_pd(
-                none,
-                t,
-                _mm256_or_pd(forward[a], backward[a]),
-            ))
-        });
-        let t_delta = [0, 1, 2].map(|a| {
-            let t = _mm256_div_pd(splat(res), _mm256_andnot_pd(sign, dir[a]));
-            lanes(_mm256_blendv_pd(
-                none,
-                t,
-                _mm256_or_pd(forward[a], backward[a]),
-            ))
-        });
-        let forward = forward.map(|m| _mm256_movemask_pd(m));
-        let backward = backward.map(|m| _mm256_movemask_pd(m));
-        let length = lanes(length);
-        for lane in 0..4 {
-            if inside & 1 << lane == 0 {
-                continue;
-            }
-            let key = Key(key.map(|k| k[lane] as u16));
-            if hit & 1 << lane != 0 {
-                mark(&dense.occupied.bits, dense.occupied.index(&key));
-            }
-            let dda = Dda {
-                length: length[lane],
-                step: [0, 1, 2].map(|a| (forward[a] >> lane & 1) - (backward[a] >> lane & 1)),
-                t_max: t_max.map(|t| t[lane]),
-                t_delta: t_delta.map(|t| t[lane]),
-            };
-            walks.extend(dense.walk(&dda, dense.free.index(&key)));
-        }
+    let res = _mm256_set1_pd(dense.tree.resolution());
+    let half = dense.tree.resolution() * 0.5;
+    let (sign, zero, none) = (
+        _mm256_set1_pd(-0.0),
+        _mm256_setzero_pd(),
+        _mm256_set1_pd(f64::MAX),
+    );
+    // Lane by lane, per axis: the end cell's key, floor(p / res) + CENTER
+    // where |p / res| < 1e9 and the key fits 16 bits (else the ray is not
+    // walked); the walk's steps, its first crossing (of the origin cell's
+    // border centre + step·res·0.5, as `Dda::new` computes it) and the
+    // crossings' spacing.
+    let mut inside = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    let (mut key, mut diff) = ([[0.0; 4]; 3], [zero; 3]);
+    for a in 0..3 {
+        let v = _mm256_div_pd(point[a], res);
+        let near = _mm256_cmp_pd::<_CMP_LT_OQ>(_mm256_andnot_pd(sign, v), _mm256_set1_pd(1e9));
+        let k = _mm256_add_pd(_mm256_floor_pd(v), _mm256_set1_pd(CENTER as f64));
+        let fits = _mm256_and_pd(
+            _mm256_cmp_pd::<_CMP_GE_OQ>(k, zero),
+            _mm256_cmp_pd::<_CMP_LT_OQ>(k, _mm256_set1_pd(65536.0)),
+        );
+        inside = _mm256_and_pd(inside, _mm256_and_pd(near, fits));
+        key[a] = to_lanes(k);
+        diff[a] = _mm256_sub_pd(point[a], _mm256_set1_pd(dense.origin[a]));
     }
+    let inside = _mm256_movemask_pd(inside);
+    let length = norm(diff);
+    let (mut t_max, mut t_delta) = ([[0.0; 4]; 3], [[0.0; 4]; 3]);
+    let (mut forward, mut backward) = ([0; 3], [0; 3]);
+    for a in 0..3 {
+        let dir = _mm256_div_pd(diff[a], length);
+        let ahead = _mm256_cmp_pd::<_CMP_GT_OQ>(dir, zero);
+        let behind = _mm256_cmp_pd::<_CMP_LT_OQ>(dir, zero);
+        let moves = _mm256_or_pd(ahead, behind);
+        let border = _mm256_blendv_pd(
+            _mm256_set1_pd(dense.centre[a] + -half),
+            _mm256_set1_pd(dense.centre[a] + half),
+            ahead,
+        );
+        let first = _mm256_div_pd(_mm256_sub_pd(border, _mm256_set1_pd(dense.origin[a])), dir);
+        let spacing = _mm256_div_pd(res, _mm256_andnot_pd(sign, dir));
+        t_max[a] = to_lanes(_mm256_blendv_pd(none, first, moves));
+        t_delta[a] = to_lanes(_mm256_blendv_pd(none, spacing, moves));
+        forward[a] = _mm256_movemask_pd(ahead);
+        backward[a] = _mm256_movemask_pd(behind);
+    }
+    let length = to_lanes(length);
+    for lane in 0..4 {
+        if inside & 1 << lane == 0 {
+            continue;
+        }
+        let key = Key([0, 1, 2].map(|a| key[a][lane] as u16));
+        if hit & 1 << lane != 0 {
+            mark(&dense.occupied.bits, dense.occupied.index(&key));
+        }
+        let dda = Dda {
+            length: length[lane],
+            step: [0, 1, 2].map(|a| (forward[a] >> lane & 1) - (backward[a] >> lane & 1)),
+            t_max: [0, 1, 2].map(|a| t_max[a][lane]),
+            t_delta: [0, 1, 2].map(|a| t_delta[a][lane]),
+        };
+        walks.extend(dense.walk(&dda, dense.free.index(&key)));
+    }
+}
+
+/// The lanes of `v`.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn to_lanes(v: __m256d) -> [f64; 4] {
+    // SAFETY: four f64 lanes, any bit pattern valid.
+    unsafe { std::mem::transmute::<__m256d, [f64; 4]>(v) }
 }
 
 /// Four walks' state, lane `k` holding one ray (the fields of [`Walk`]).
