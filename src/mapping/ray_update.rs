@@ -511,14 +511,16 @@ impl RayUpdater {
                 .codes
                 .retain(|c| !occupied.contains(&Key::from_morton(*c)));
         }
-        // Updates in depth-first (Morton) order, one walk each.
-        radsort::sort(&mut self.free.codes);
-        radsort::sort(&mut self.occupied.codes);
     }
 
     /// The second half of [`RayUpdater::insert_scan`]: the cells found by
-    /// the last [`RayUpdater::find_cells`] updated, free then occupied.
-    pub fn apply(&self, tree: &mut Octree) {
+    /// the last [`RayUpdater::find_cells`] updated, free then occupied, each
+    /// set in depth-first (Morton) order so that the tree is walked once.
+    /// (Sorting here, not in `find_cells`, lets a pipeline sort one scan's
+    /// cells while the next scan's rays are walked.)
+    pub fn apply(&mut self, tree: &mut Octree) {
+        radsort::sort(&mut self.free.codes);
+        radsort::sort(&mut self.occupied.codes);
         let rule = self.rule;
         tree.update_sorted(&self.free.codes, rule.miss, rule.clamp);
         tree.update_sorted(&self.occupied.codes, rule.hit, rule.clamp);
