@@ -5,6 +5,10 @@
 //! walk spends most of its time on mispredicted axis choices, while here
 //! the four lanes' steps are one short chain of compare, mask and add, and
 //! the only branches left are the rare end of a lane's ray and the marks.
+//! The rays' set-up (end point, end key, the DDA's first crossings and
+//! spacings) is computed four at a time too, into a buffer before the walk:
+//! a refill that called back into the set-up from the walk's loop made the
+//! compiler keep the lanes' state on the stack.
 
 use super::dense::{finish, DenseWalk, Walk};
 use super::{mark, Dda, RayEnd};
