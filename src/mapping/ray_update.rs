@@ -481,7 +481,8 @@ impl RayUpdater {
             };
             let hits = hits.par_chunks(RAYS_PER_TASK).map(Rays::Hits);
             let misses = misses.par_chunks(RAYS_PER_TASK).map(Rays::Misses);
-            hits.chain(misses).for_each_init(Vec::new, |walks, rays| {
+            let buffer = || Vec::with_capacity(RAYS_PER_TASK);
+            hits.chain(misses).for_each_init(buffer, |walks, rays| {
                 walks.clear();
                 match rays {
                     Rays::Hits(hits) => dense.begin_hits(hits, walks),

@@ -43,9 +43,8 @@ pub(super) struct Walk {
 
 impl DenseWalk<'_> {
     /// The ray of each of `hits` ([`RayEnd::of_hit`]) that ends in the
-    /// tree: its end cell marked occupied if it is a hit, and its walk,
-    /// first cell marked, appended to `walks` (none when it ends in the
-    /// origin's cell).
+    /// tree: its end cell marked occupied if it is a hit, and its walk
+    /// appended to `walks` (none when it ends in the origin's cell).
     pub fn begin_hits(&self, hits: &[Point3], walks: &mut Vec<Walk>) {
         #[cfg(target_arch = "x86_64")]
         if self.lanes && std::arch::is_x86_feature_detected!("avx2") {
@@ -91,14 +90,12 @@ impl DenseWalk<'_> {
     }
 
     /// The walk of `dda` from the origin's cell to the one at `stop`
-    /// (bitmap index), with its first cell marked; none when the two are
-    /// one cell (nothing to mark).
+    /// (bitmap index); none when the two are one cell (nothing to mark).
     #[inline(always)]
     pub fn walk(&self, dda: &Dda, stop: usize) -> Option<Walk> {
         if self.start == stop {
             return None;
         }
-        mark(&self.free.bits, self.start);
         Some(Walk {
             t_max: dda.t_max,
             t_delta: dda.t_delta,
@@ -109,9 +106,13 @@ impl DenseWalk<'_> {
         })
     }
 
-    /// Marks the free cells of every walk after its first (marked by
-    /// [`DenseWalk::walk`]), the end cells excluded.
+    /// Marks the free cells of every walk, the end cells excluded: the
+    /// origin's cell, where every walk starts, once.
     pub fn mark_rays(&self, walks: &[Walk]) {
+        if walks.is_empty() {
+            return;
+        }
+        mark(&self.free.bits, self.start);
         #[cfg(target_arch = "x86_64")]
         if self.lanes && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above).

@@ -151,8 +151,9 @@ unsafe fn begin_four(dense: &DenseWalk, point: [__m256d; 3], hit: i32, walks: &m
             continue;
         }
         let key = Key([0, 1, 2].map(|a| key[a][lane] as u16));
+        let stop = dense.free.index(&key);
         if hit & 1 << lane != 0 {
-            mark(&dense.occupied.bits, dense.occupied.index(&key));
+            mark(&dense.occupied.bits, stop);
         }
         let dda = Dda {
             length: length[lane],
@@ -160,7 +161,7 @@ unsafe fn begin_four(dense: &DenseWalk, point: [__m256d; 3], hit: i32, walks: &m
             t_max: [0, 1, 2].map(|a| t_max[a][lane]),
             t_delta: [0, 1, 2].map(|a| t_delta[a][lane]),
         };
-        walks.extend(dense.walk(&dda, dense.free.index(&key)));
+        walks.extend(dense.walk(&dda, stop));
     }
 }
 
