@@ -25,20 +25,15 @@ fn walk_ray(tree: &Octree, origin: &Point3, end: &Point3, visit: impl FnMut(u64)
     let (Some(start), Some(stop)) = (tree.key(origin), tree.key(end)) else {
         return false;
     };
-    walk_keys(tree, origin, start, end, stop, visit);
+    let dda = Dda::new(tree.resolution(), origin, &tree.center(&start, 16), end);
+    walk_keys(start, stop, &dda, visit);
     true
 }
 
-/// [`walk_ray`] between ends whose keys (`start`, `stop`) are known.
+/// [`walk_ray`] of the walk `dda` between cells whose keys (`start`,
+/// `stop`) are known.
 #[inline(always)]
-fn walk_keys(
-    tree: &Octree,
-    origin: &Point3,
-    start: Key,
-    end: &Point3,
-    stop: Key,
-    mut visit: impl FnMut(u64),
-) {
+fn walk_keys(start: Key, stop: Key, dda: &Dda, mut visit: impl FnMut(u64)) {
     if start == stop {
         return;
     }
@@ -48,7 +43,7 @@ fn walk_keys(
         step,
         t_max,
         t_delta,
-    } = Dda::new(tree.resolution(), origin, &tree.center(&start, 16), end);
+    } = *dda;
     // The walk's state in scalars (registers), one complete branch per
     // axis: indexing arrays by the axis taken would send every step
     // through memory (store-to-load stalls).
@@ -92,6 +87,7 @@ fn walk_keys(
 /// parallel to that axis's planes), the ray parameter of the first
 /// crossing of each axis's cell border, and the parameter between two
 /// crossings (`f64::MAX` on an axis without steps).
+#[derive(Clone, Copy)]
 struct Dda {
     length: f64,
     step: [i32; 3],
@@ -293,15 +289,10 @@ fn key_box(
     };
     // (Least and greatest are exact whatever the order: the same box for
     // every thread count.)
+    let none = || (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3]));
     let (least, greatest) = ends()
-        .fold(
-            || (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3])),
-            |(l, g), e| (l.inf(&e), g.sup(&e)),
-        )
-        .reduce(
-            || (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3])),
-            |(l, g), (m, h)| (l.inf(&m), g.sup(&h)),
-        );
+        .fold(none, |(l, g), e| (l.inf(&e), g.sup(&e)))
+        .reduce(none, |(l, g), (m, h)| (l.inf(&m), g.sup(&h)));
     let (mut lo, mut hi) = (start.0, start.0);
     let mut widen = |k: Key| {
         for a in 0..3 {
@@ -451,10 +442,6 @@ impl RayUpdater {
         let Some(start) = tree.key(origin) else {
             return;
         };
-        let ends = || {
-            let hits = hits.iter().map(|p| RayEnd::of_hit(origin, p, max_range));
-            hits.chain(misses.iter().map(|d| RayEnd::of_miss(origin, d, max_range)))
-        };
         // The box of the scan's keys, one cell wider on every side: a walk
         // may end one cell past its end point's (numerical error).
         let (lo, hi) = key_box(tree, start, origin, hits, misses, max_range);
@@ -493,17 +480,18 @@ impl RayUpdater {
             // Occupied wins.
             self.free.list_marked(&mut self.occupied);
         } else {
-            let free = &mut self.free;
-            for e in ends() {
-                if let Some(stop) = tree.key(&e.point) {
-                    walk_keys(tree, origin, start, &e.point, stop, |k| {
-                        free.insert(&Key::unpack(k))
-                    });
-                }
-            }
-            for e in ends().filter(|e| e.hit) {
-                if let Some(k) = tree.key(&e.point) {
-                    self.occupied.insert(&k);
+            let centre = tree.center(&start, 16);
+            let hit_ends = hits.iter().map(|p| RayEnd::of_hit(origin, p, max_range));
+            let miss_ends = misses.iter().map(|d| RayEnd::of_miss(origin, d, max_range));
+            for e in hit_ends.chain(miss_ends) {
+                let Some(stop) = tree.key(&e.point) else {
+                    continue;
+                };
+                let dda = Dda::new(tree.resolution(), origin, &centre, &e.point);
+                let free = &mut self.free;
+                walk_keys(start, stop, &dda, |k| free.insert(&Key::unpack(k)));
+                if e.hit {
+                    self.occupied.insert(&stop);
                 }
             }
             // Occupied wins.
