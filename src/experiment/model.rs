@@ -15,7 +15,7 @@ use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::BeamEnd;
 use crate::mapping::viewpoint::{local_grid, Raster};
 use crate::mapping::{Clamp, MapSettings, Octree};
-use crate::sim::scan::{BeamStatus, Scan};
+use crate::sim::scan::{BeamStatus, Measurement, Scan};
 use crate::sim::sensor::RangeModel;
 use crate::sim::sensor::Scanner;
 use crate::uncertainty::{
@@ -190,30 +190,27 @@ pub fn beam_ends(
 pub fn measured_points(view: &MapperView, scan: &Scan) -> Vec<Option<UncertainPoint>> {
     let range = view.range;
     let directions = &view.scanner.directions;
-    let ranges: Vec<Option<f64>> = scan
-        .measurements
-        .iter()
-        .map(|m| (m.status == BeamStatus::Hit).then_some(m.range))
-        .collect();
-    let pooled = if view.settings.beam_pooling {
-        pool_ranges(view.scanner.columns, directions, &ranges, |r| {
-            range.sigma(r)
-        })
-    } else {
-        ranges
-            .iter()
-            .map(|r| r.map(|r| (r, range.sigma(r))))
-            .collect()
+    let point = |d: &Vector3, (r, sigma): (f64, f64)| UncertainPoint {
+        mean: d * r,
+        covariance: range.point_covariance_with(d, r, sigma),
     };
+    let hit = |m: &Measurement| (m.status == BeamStatus::Hit).then_some(m.range);
+    if !view.settings.beam_pooling {
+        return scan
+            .measurements
+            .par_iter()
+            .zip(directions.par_iter())
+            .map(|(m, d)| hit(m).map(|r| point(d, (r, range.sigma(r)))))
+            .collect();
+    }
+    let ranges: Vec<Option<f64>> = scan.measurements.iter().map(hit).collect();
+    let pooled = pool_ranges(view.scanner.columns, directions, &ranges, |r| {
+        range.sigma(r)
+    });
     pooled
         .iter()
         .zip(directions)
-        .map(|(p, d)| {
-            p.map(|(r, sigma)| UncertainPoint {
-                mean: d * r,
-                covariance: range.point_covariance_with(d, r, sigma),
-            })
-        })
+        .map(|(p, d)| p.map(|p| point(d, p)))
         .collect()
 }
 
@@ -228,23 +225,17 @@ pub fn build_map(
     resolution: f64,
     offset: &Vector3,
 ) -> Result<Octree> {
-    let measured: Vec<_> = if method == Method::RayUpdate {
-        Vec::new() // the ray update takes the raw hits
-    } else {
-        scans
-            .iter()
-            .map(|scan| measured_points(view, scan))
-            .collect()
-    };
-    build_map_measured(view, scans, &measured, method, resolution, offset)
+    build_map_measured(view, scans, None, method, resolution, offset)
 }
 
 /// [`build_map`] from the scans' [`measured_points`] (one per scan; unused
-/// by the ray update), computed once for all methods of a run.
+/// by the ray update), when they are computed once for all methods of a
+/// run; `None`: each scan's are computed as its grid is built, and dropped
+/// with it.
 pub fn build_map_measured(
     view: &MapperView,
     scans: &[Scan],
-    measured: &[Vec<Option<UncertainPoint>>],
+    measured: Option<&[Vec<Option<UncertainPoint>>]>,
     method: Method,
     resolution: f64,
     offset: &Vector3,
@@ -296,7 +287,15 @@ pub fn build_map_measured(
         };
         let propagator = propagator(method, &chain).expect("an OPDF method has a propagator");
         let origin = propagator.origin();
-        let mut beams = beam_ends(view, scan, &measured[i], propagator.as_ref());
+        let computed;
+        let points = match measured {
+            Some(measured) => &measured[i],
+            None => {
+                computed = measured_points(view, scan);
+                &computed
+            }
+        };
+        let mut beams = beam_ends(view, scan, points, propagator.as_ref());
         for beam in &mut beams {
             if let BeamEnd::Hit { point, .. } = beam {
                 *point += offset;

@@ -84,7 +84,7 @@ pub fn run_seed(
         let map = build_map_measured(
             &view,
             &run.scans,
-            &measured,
+            Some(&measured),
             method,
             experiment.resolution,
             &offset,
