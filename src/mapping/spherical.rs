@@ -175,10 +175,7 @@ impl LocalGrid {
     ) -> Self {
         let grid_from_scene = scene_from_grid.transpose();
         let bins = azimuth.count * elevation.count;
-        // Each beam with its bin, then placed by a counting sort: beams keep
-        // their input order within a bin.
         let mut binned: Vec<(u32, Beam)> = Vec::with_capacity(ends.len());
-        let mut offsets = vec![0u32; bins + 1];
         for end in ends {
             let (direction, range, sigma) = match end {
                 BeamEnd::Hit { point, covariance } => {
@@ -202,7 +199,6 @@ impl LocalGrid {
                 continue;
             }
             let bin = a as usize * elevation.count + e as usize;
-            offsets[bin + 1] += 1;
             binned.push((
                 bin as u32,
                 Beam {
@@ -213,24 +209,17 @@ impl LocalGrid {
                 },
             ));
         }
+        // Stable (radix): beams keep their input order within a bin.
+        radsort::sort_by_key(&mut binned, |(bin, _)| *bin);
+        let mut offsets = vec![0u32; bins + 1];
+        for (bin, _) in &binned {
+            offsets[*bin as usize + 1] += 1;
+        }
         for i in 0..bins {
             offsets[i + 1] += offsets[i];
         }
-        let placeholder = Beam {
-            direction: Vector3::zeros(),
-            range: 0.0,
-            sigma: 0.0,
-            sigma_origin: 0.0,
-        };
-        let mut beams = vec![placeholder; binned.len()];
-        let mut inverse = vec![Vector3::zeros(); binned.len()];
-        let mut next = offsets.clone();
-        for (bin, beam) in binned {
-            let slot = &mut next[bin as usize];
-            beams[*slot as usize] = beam;
-            inverse[*slot as usize] = beam.direction.map(|c| 1.0 / c);
-            *slot += 1;
-        }
+        let beams: Vec<Beam> = binned.into_iter().map(|(_, beam)| beam).collect();
+        let inverse = beams.iter().map(|b| b.direction.map(|c| 1.0 / c)).collect();
         let mut grid = Self {
             origin,
             scene_from_grid,
