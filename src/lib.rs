@@ -24,6 +24,7 @@ pub mod eval;
 pub mod experiment;
 pub mod files;
 pub mod geometry;
+pub mod heap;
 pub mod mapping;
 pub mod plot;
 pub mod sim;

@@ -8,11 +8,12 @@
 use super::Experiment;
 use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Vector3};
-use crate::mapping::merge::merge;
+use crate::mapping::merge::merge_with;
 use crate::mapping::pooling::pool_ranges;
 use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::BeamEnd;
+use crate::mapping::surface_cells::SurfaceCells;
 use crate::mapping::viewpoint::{local_grid, Raster};
 use crate::mapping::{Clamp, MapSettings, Octree};
 use crate::sim::scan::{BeamStatus, Measurement, Scan};
@@ -276,7 +277,9 @@ pub fn build_map_measured(
         vertical: &view.scanner.vertical_angles,
     };
     let options = view.settings.merge_options();
-    // Scan i's local grid: its beams propagated and binned.
+    let geometry = Octree::new(resolution);
+    // Scan i's local grid (its beams propagated and binned) and the cells
+    // its surface bands reach.
     let grid_of = |i: usize| {
         let scan = &scans[i];
         let full_chain = scan_chain(scan);
@@ -302,22 +305,24 @@ pub fn build_map_measured(
             }
         }
         let rotation = chain.nominal().rotation.to_rotation_matrix().into_inner();
-        local_grid(
+        let grid = local_grid(
             &(origin.mean + offset),
             &origin.covariance,
             &rotation,
             raster,
             &beams,
             max_range,
-        )
+        );
+        let surfaces = SurfaceCells::new(&grid, &options.model, &geometry);
+        (grid, surfaces)
     };
     // A pipeline: the next scan's grid is built while this one is merged.
     let mut next = (!scans.is_empty()).then(|| grid_of(0));
     for i in 0..scans.len() {
-        let grid = next.take().expect("a grid per scan");
+        let (grid, surfaces) = next.take().expect("a grid per scan");
         let ((), following) = rayon::join(
             || {
-                merge(&mut tree, &grid, &options);
+                merge_with(&mut tree, &grid, &surfaces, &options);
             },
             || (i + 1 < scans.len()).then(|| grid_of(i + 1)),
         );

@@ -148,14 +148,28 @@ impl CellModel {
         (before, (1.0 - before - after).max(0.0), after)
     }
 
+    /// `P(λ > ρ)` for a beam with a return: [`CellModel::split`]'s last term
+    /// at the chord `[ρ, ρ]`, with one tail evaluated instead of two.
+    fn beyond(beam: &Beam, rho: f64) -> f64 {
+        let (r, sigma) = (beam.range, beam.sigma);
+        if sigma <= 0.0 {
+            f64::from(r > rho)
+        } else if rho > r + TAIL * sigma {
+            0.0
+        } else if rho < r - TAIL * sigma {
+            1.0
+        } else {
+            normal_cdf((r - rho) / sigma)
+        }
+    }
+
     /// How surely the point at range `rho` on this beam is free: `P(λ > ρ)`
     /// times the origin step `Φ(ρ / σ_o)`, or 0 when the risk level does not
     /// allow calling it free (`P(λ > ρ) < 1 − ε`). A no-return beam frees every
     /// point within the maximum range.
     pub fn free_at(&self, beam: &Beam, rho: f64, max_range: f64) -> f64 {
         let beyond = if beam.range.is_finite() {
-            let (_, _, after) = self.split(beam, rho, rho, max_range);
-            after
+            Self::beyond(beam, rho)
         } else {
             f64::from(rho < max_range)
         };

@@ -2,13 +2,15 @@
 //! search (docs/math.md §5.3) with the cell-occupancy model (§5.4): descend
 //! only into octree cells that meet the grid's beams; update a whole cell at
 //! once where every beam certifies all of it free; at the finest level combine
-//! the chance that a surface lies inside the cell with the share of the cell
-//! seen in front of the surface, and fuse in log-odds.
+//! the chance that a surface lies inside the cell (looked up in the grid's
+//! [`SurfaceCells`]) with the share of the cell seen in front of the surface,
+//! and fuse in log-odds.
 
-use super::chord::{origin_step, ray_box, Beam, CellModel};
+use super::chord::{ray_box, Beam, CellModel};
 use super::octree::{Clamp, Key, Octree, DEPTH};
 use super::opdf::logit;
 use super::spherical::{BinBox, LocalGrid};
+use super::surface_cells::{chord_surface, SurfaceCells};
 use crate::geometry::Vector3;
 use rayon::prelude::*;
 
@@ -54,12 +56,25 @@ fn task_depth(resolution: f64) -> u8 {
 /// task per node of [`task_depth`]; its updates are applied afterwards in
 /// depth-first order, so the tree is the same whatever the thread count.
 pub fn merge(tree: &mut Octree, grid: &LocalGrid, options: &MergeOptions) -> MergeStats {
+    let surfaces = SurfaceCells::new(grid, &options.model, tree);
+    merge_with(tree, grid, &surfaces, options)
+}
+
+/// [`merge`] with the grid's [`SurfaceCells`] built beforehand (on a tree
+/// of the same resolution), e.g. while the previous grid is merged.
+pub fn merge_with(
+    tree: &mut Octree,
+    grid: &LocalGrid,
+    surfaces: &SurfaceCells,
+    options: &MergeOptions,
+) -> MergeStats {
     if grid.beam_count() == 0 {
         return MergeStats::default();
     }
     let planner = Planner {
         tree,
         grid,
+        surfaces,
         options,
         task_depth: task_depth(tree.resolution()),
     };
@@ -133,6 +148,7 @@ struct Plan {
 struct Planner<'a> {
     tree: &'a Octree,
     grid: &'a LocalGrid,
+    surfaces: &'a SurfaceCells,
     options: &'a MergeOptions,
     task_depth: u8,
 }
@@ -177,7 +193,10 @@ impl Planner<'_> {
         if depth == DEPTH {
             let corners = corners.expect("finest cells come with their parent's corner cache");
             let model = &self.options.model;
-            let hit = surface_inside(self.grid, model, &centre, half, &bins);
+            let hit = match self.surfaces.get(&key) {
+                Some(hit) => hit,
+                None => surface_off_bands(self.grid, model, &centre, half, &bins),
+            };
             let offset = corners.offset(&key);
             let p = combine(model, hit, |i| {
                 let [x, y, z] = corner_offset(i);
@@ -338,20 +357,14 @@ pub fn surface_inside(
     bins: &BinBox,
 ) -> f64 {
     let max_range = grid.max_range;
-    let inside = |beam, a: f64, b: f64| {
-        model.split(beam, a, b, max_range).1 * origin_step(0.5 * (a + b), beam.sigma_origin)
-    };
+    let inside = |beam, a: f64, b: f64| chord_surface(model, beam, a, b, max_range);
     // A beam whose surface band misses the ball's range interval (which
     // holds every chord through C) says "no surface inside" exactly: `split`
     // returns 0 inside for it. Only the others need their chord; the rest
     // matter only for whether any centre line crosses C at all.
     let (lo, hi) = bins.range;
     let margin = 1e-9 * (1.0 + hi);
-    let may_hold = |beam: &Beam| {
-        beam.range.is_finite()
-            && beam.band_start(max_range) <= hi + margin
-            && beam.reach(max_range) >= lo - margin
-    };
+    let may_hold = |beam: &Beam| may_hold(beam, bins, max_range);
     let mut hit = 0.0f64;
     let mut crossed = false;
     let mut others = false;
@@ -434,6 +447,43 @@ pub fn surface_inside(
         }
     }
     hit
+}
+
+/// Whether `beam`'s surface band reaches the range interval of the ball
+/// `bins` was found for (with a rounding margin): only such a beam can put a
+/// surface inside a cell of that ball.
+#[inline]
+fn may_hold(beam: &Beam, bins: &BinBox, max_range: f64) -> bool {
+    let (lo, hi) = bins.range;
+    let margin = 1e-9 * (1.0 + hi);
+    beam.range.is_finite()
+        && beam.band_start(max_range) <= hi + margin
+        && beam.reach(max_range) >= lo - margin
+}
+
+/// [`surface_inside`] for a cell that no beam's surface band touches (it is
+/// not in the [`SurfaceCells`]): every beam crossing C gives 0, so `H` is 0
+/// unless no centre line crosses C at all and a beam of C's centre bin may
+/// hold the surface (its fallback), which the full search then answers.
+pub(crate) fn surface_off_bands(
+    grid: &LocalGrid,
+    model: &CellModel,
+    centre: &Vector3,
+    half: f64,
+    bins: &BinBox,
+) -> f64 {
+    let Some((a, e)) = bins.centre else {
+        return 0.0;
+    };
+    let (beams, inverse) = grid.bin_beams(a, e);
+    if !beams.iter().any(|b| may_hold(b, bins, grid.max_range))
+        || inverse
+            .iter()
+            .any(|inv| ray_box(&grid.origin, inv, centre, half).is_some())
+    {
+        return 0.0;
+    }
+    surface_inside(grid, model, centre, half, bins)
 }
 
 /// The viewpoint's verdict on C from `hit` (H) and the free share of its

@@ -32,6 +32,7 @@ pub mod scan_graph;
 pub mod settings;
 pub mod shared_motion;
 pub mod spherical;
+pub mod surface_cells;
 pub mod viewpoint;
 
 pub use octree::{Clamp, Key, Leaf, Octree, TreeStats};

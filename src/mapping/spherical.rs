@@ -242,6 +242,11 @@ impl LocalGrid {
         self.beams.len()
     }
 
+    /// Every beam held, bin by bin, with their inverse directions.
+    pub fn beams(&self) -> (&[Beam], &[Vector3]) {
+        (&self.beams, &self.inverse)
+    }
+
     /// The beams of angular bin `(a, e)` with their inverse directions.
     #[inline]
     pub fn bin_beams(&self, a: usize, e: usize) -> (&[Beam], &[Vector3]) {

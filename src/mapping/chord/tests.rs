@@ -242,3 +242,29 @@ fn split_and_free_at_are_the_first_hit_probabilities() {
     assert_eq!(model.free_at(&miss, 1.9, 2.0), 1.0);
     assert_eq!(model.free_at(&miss, 2.1, 2.0), 0.0);
 }
+
+#[test]
+fn beyond_is_split_s_last_term_bit_for_bit() {
+    // `free_at` evaluates one tail; the map must not move by a bit.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let model = CellModel::default();
+    for i in 0..20_000 {
+        let sigma = match i % 5 {
+            0 => 0.0,
+            _ => rng.random_range(1e-5..0.05),
+        };
+        let beam = Beam {
+            direction: Vector3::x(),
+            range: rng.random_range(0.1..2.0),
+            sigma,
+            sigma_origin: 0.0,
+        };
+        let rho = beam.range + rng.random_range(-9.0..9.0) * sigma.max(1e-3);
+        let (_, _, after) = model.split(&beam, rho, rho, 3.0);
+        assert_eq!(
+            CellModel::beyond(&beam, rho).to_bits(),
+            after.to_bits(),
+            "{beam:?} at {rho}"
+        );
+    }
+}

@@ -1,0 +1,185 @@
+//! The finest cells each beam's surface band reaches, with the most confident
+//! chord probability there: `H` of docs/math.md §5.4 looked up, not searched.
+//!
+//! A beam says a surface may lie inside cell C only where its chord `[a, b]`
+//! through C meets its surface band `[r − TAIL σ, r + TAIL σ]`: elsewhere
+//! `P(a ≤ λ ≤ b)` is exactly 0 ([`CellModel::split`]). So `H(C)`, the maximum
+//! over the beams crossing C of that probability, is the maximum over the
+//! beams whose band *segment* touches C. This index walks each beam's band
+//! once (a few cells at most, whatever the cell's angular extent) instead of
+//! every cell visiting every beam of its solid angle.
+//!
+//! [DESIGN] Cells are found by cutting the band into pieces no longer than a
+//! cell edge and listing the cells of each piece's bounding box (at most two
+//! per axis), widened by a millionth of a cell; the exact ray/box chord then
+//! decides. The chord is computed as the merge computes it (same origin,
+//! inverse direction, centre and half edge), so the value is the merge's to
+//! the bit.
+
+use super::chord::{origin_step, ray_box, Beam, CellModel};
+use super::octree::{Key, Octree, DEPTH};
+use super::spherical::LocalGrid;
+use crate::geometry::Vector3;
+use rayon::prelude::*;
+use rustc_hash::FxHashMap;
+
+/// The chance that a surface lies inside the chord `[a, b]` of `beam`, times
+/// the origin step at the chord's middle: one beam's term of `H` (§5.4).
+#[inline]
+pub fn chord_surface(model: &CellModel, beam: &Beam, a: f64, b: f64, max_range: f64) -> f64 {
+    model.split(beam, a, b, max_range).1 * origin_step(0.5 * (a + b), beam.sigma_origin)
+}
+
+/// `H` of every finest cell some beam's surface band touches with a
+/// positive chord probability (absent: 0 from every beam that crosses it).
+#[derive(Clone, Debug, Default)]
+pub struct SurfaceCells {
+    cells: FxHashMap<u64, f64>,
+}
+
+/// Beams per parallel task.
+const CHUNK: usize = 4096;
+
+/// A finest key packed into one integer.
+#[inline]
+fn packed(key: &Key) -> u64 {
+    u64::from(key.0[0]) | u64::from(key.0[1]) << 16 | u64::from(key.0[2]) << 32
+}
+
+impl SurfaceCells {
+    /// The index of `grid`'s beams on the finest cells of `geometry` (its
+    /// resolution; the tree's contents are not read).
+    pub fn new(grid: &LocalGrid, model: &CellModel, geometry: &Octree) -> Self {
+        let (beams, inverse) = grid.beams();
+        let cells = beams
+            .par_chunks(CHUNK)
+            .zip(inverse.par_chunks(CHUNK))
+            .fold(FxHashMap::default, |mut cells, (beams, inverse)| {
+                for (beam, inv) in beams.iter().zip(inverse) {
+                    band_cells(grid, model, geometry, beam, inv, &mut cells);
+                }
+                cells
+            })
+            .reduce(FxHashMap::default, |a, b| {
+                let (mut a, b) = if a.len() < b.len() { (b, a) } else { (a, b) };
+                for (key, h) in b {
+                    let slot = a.entry(key).or_insert(h);
+                    *slot = slot.max(h);
+                }
+                a
+            });
+        Self { cells }
+    }
+
+    /// `H` of the finest cell `key` if some beam's band gives it a positive
+    /// value.
+    #[inline]
+    pub fn get(&self, key: &Key) -> Option<f64> {
+        self.cells.get(&packed(key)).copied()
+    }
+
+    /// Number of cells held.
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// Whether no cell is held.
+    pub fn is_empty(&self) -> bool {
+        self.cells.is_empty()
+    }
+}
+
+/// Raises `cells[C]` to `min(h, p_hi)` for each finest cell C whose chord on
+/// `beam` meets its surface band with `h > 0`; a cell already at `p_hi` is
+/// not evaluated again.
+fn band_cells(
+    grid: &LocalGrid,
+    model: &CellModel,
+    geometry: &Octree,
+    beam: &Beam,
+    inverse: &Vector3,
+    cells: &mut FxHashMap<u64, f64>,
+) {
+    if !beam.range.is_finite() {
+        return;
+    }
+    let max_range = grid.max_range;
+    let (start, end) = (beam.band_start(max_range).max(0.0), beam.reach(max_range));
+    if start.is_nan() || end.is_nan() || start > end {
+        return;
+    }
+    let resolution = geometry.resolution();
+    let half = geometry.node_size(DEPTH) * 0.5;
+    let widen = 1e-6 * resolution;
+    let pieces = ((end - start) / resolution).ceil().clamp(1.0, 1e6) as usize;
+    let point = |t: f64| grid.origin + beam.direction * t;
+    // Cells listed by the previous piece (neighbouring pieces share some).
+    let mut previous = [[0i64; 3]; 2];
+    for piece in 0..pieces {
+        let (ta, tb) = (
+            start + (end - start) * piece as f64 / pieces as f64,
+            start + (end - start) * (piece + 1) as f64 / pieces as f64,
+        );
+        let (pa, pb) = (point(ta), point(tb));
+        let range: [[i64; 2]; 3] = std::array::from_fn(|axis| {
+            let (lo, hi) = (pa[axis].min(pb[axis]), pa[axis].max(pb[axis]));
+            [
+                floor((lo - widen) / resolution),
+                floor((hi + widen) / resolution),
+            ]
+        });
+        for x in range[0][0]..=range[0][1] {
+            for y in range[1][0]..=range[1][1] {
+                for z in range[2][0]..=range[2][1] {
+                    let cell = [x, y, z];
+                    let seen = piece > 0
+                        && (0..3).all(|a| previous[0][a] <= cell[a] && cell[a] <= previous[1][a]);
+                    if seen {
+                        continue;
+                    }
+                    let Some(key) = key_of(cell) else {
+                        continue;
+                    };
+                    let centre = geometry.center(&key, DEPTH).coords;
+                    let Some((a, b)) = ray_box(&grid.origin, inverse, &centre, half) else {
+                        continue;
+                    };
+                    let slot = cells.get_mut(&packed(&key));
+                    if slot.as_ref().is_some_and(|h| **h >= model.p_hi) {
+                        continue;
+                    }
+                    let h = chord_surface(model, beam, a, b, max_range).min(model.p_hi);
+                    match slot {
+                        Some(slot) => *slot = slot.max(h),
+                        None if h > 0.0 => {
+                            cells.insert(packed(&key), h);
+                        }
+                        None => {}
+                    }
+                }
+            }
+        }
+        previous = [range.map(|r| r[0]), range.map(|r| r[1])];
+    }
+}
+
+/// `⌊v⌋` for |v| < 2⁶² (saturating beyond), without a libm call.
+#[inline]
+fn floor(v: f64) -> i64 {
+    let truncated = v as i64;
+    truncated - i64::from((truncated as f64) > v)
+}
+
+/// The key of the finest cell with integer coordinates `cell` (floor of the
+/// position over the resolution), if inside the tree's cube.
+#[inline]
+fn key_of(cell: [i64; 3]) -> Option<Key> {
+    let mut key = [0u16; 3];
+    for (out, c) in key.iter_mut().zip(cell) {
+        *out = u16::try_from(c + super::octree::CENTER).ok()?;
+    }
+    Some(Key(key))
+}
+
+#[cfg(test)]
+mod tests;
