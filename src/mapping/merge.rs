@@ -43,9 +43,10 @@ pub struct MergeStats {
 const TASK_EDGE: f64 = 0.1;
 
 /// The depth of the task nodes at `resolution`: the deepest whose edge
-/// reaches [`TASK_EDGE`], above the finest level.
+/// reaches [`TASK_EDGE`], at least [`CORNER_BLOCK`] levels above the finest
+/// (a task holds whole corner caches).
 fn task_depth(resolution: f64) -> u8 {
-    let mut depth = DEPTH - 1;
+    let mut depth = DEPTH - CORNER_BLOCK;
     while depth > 1 && resolution * f64::from(1u32 << (DEPTH - depth)) < TASK_EDGE {
         depth -= 1;
     }
@@ -191,7 +192,7 @@ impl Planner<'_> {
             return;
         }
         if depth == DEPTH {
-            let corners = corners.expect("finest cells come with their parent's corner cache");
+            let corners = corners.expect("finest cells come with their block's corner cache");
             let model = &self.options.model;
             let hit = match self.surfaces.get(&key) {
                 Some(hit) => hit,
@@ -216,8 +217,9 @@ impl Planner<'_> {
             }
             return;
         }
-        // The eight finest children of a node share 27 corners.
-        let mut cache = (depth == DEPTH - 1).then(|| CornerCache::new(key));
+        // The finest cells of a block share their corners.
+        let mut own = (depth == DEPTH - CORNER_BLOCK).then(|| CornerCache::new(key));
+        let mut corners = own.as_mut().or(corners);
         let bit = 15 - depth as u32;
         for child in 0..8u16 {
             let mut k = key;
@@ -228,7 +230,7 @@ impl Planner<'_> {
                 plan.tasks.push(k);
                 plan.updates.push(Update::Task);
             } else {
-                self.search(k, depth + 1, cache.as_mut(), plan, split);
+                self.search(k, depth + 1, corners.as_deref_mut(), plan, split);
             }
         }
     }
@@ -241,28 +243,37 @@ fn corner_offset(i: usize) -> [u16; 3] {
     [(i & 1) as u16, (i >> 1 & 1) as u16, (i >> 2 & 1) as u16]
 }
 
-/// The corner values ([`corner_free`]) of the eight finest children of one
-/// node: its 3×3×3 lattice points, each evaluated at most once.
+/// The levels above the finest at which a corner cache starts: its block of
+/// `2^k` finest cells a side shares `(2^k + 1)³` lattice points.
+const CORNER_BLOCK: u8 = 2;
+
+/// Lattice points a side of a corner block.
+const LATTICE: usize = (1 << CORNER_BLOCK) + 1;
+
+/// The corner values ([`corner_free`]) of the finest cells of one block (a
+/// node [`CORNER_BLOCK`] levels above the finest): its lattice points, each
+/// evaluated at most once, whichever cells share it.
 struct CornerCache {
     base: Key,
-    free: [f64; 27],
+    free: [f64; LATTICE * LATTICE * LATTICE],
 }
 
 impl CornerCache {
     fn new(base: Key) -> Self {
         Self {
             base,
-            free: [f64::NAN; 27],
+            free: [f64::NAN; LATTICE * LATTICE * LATTICE],
         }
     }
 
-    /// A child's lower corner as lattice offsets from the base.
+    /// A cell's lower corner as lattice offsets from the base.
     fn offset(&self, key: &Key) -> [u16; 3] {
         std::array::from_fn(|a| key.0[a] - self.base.0[a])
     }
 
     fn free(&mut self, tree: &Octree, grid: &LocalGrid, model: &CellModel, at: [u16; 3]) -> f64 {
-        let slot = &mut self.free[(at[2] as usize * 3 + at[1] as usize) * 3 + at[0] as usize];
+        let [x, y, z] = at.map(usize::from);
+        let slot = &mut self.free[(z * LATTICE + y) * LATTICE + x];
         if slot.is_nan() {
             *slot = corner_free(grid, model, &tree.lattice_point(&self.base, at).coords);
         }

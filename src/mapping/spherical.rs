@@ -15,7 +15,7 @@
 //! leaves the choice open). Merging costs one extra rotation.
 
 use super::chord::{Beam, TAIL};
-use crate::geometry::{Matrix3, Vector3};
+use crate::geometry::{floor, Matrix3, Vector3};
 
 /// A bin axis: `count` bins of `step` from `start`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -32,7 +32,7 @@ impl Axis {
     /// The (unclamped) bin index of `v`.
     #[inline]
     pub fn index(&self, v: f64) -> isize {
-        ((v - self.start) / self.step).floor() as isize
+        floor((v - self.start) / self.step) as isize
     }
 
     /// Centre of bin `i`.

@@ -19,7 +19,7 @@
 use super::chord::{origin_step, ray_box, Beam, CellModel};
 use super::octree::{Key, Octree, DEPTH};
 use super::spherical::LocalGrid;
-use crate::geometry::Vector3;
+use crate::geometry::{floor, Vector3};
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
@@ -140,34 +140,26 @@ fn band_cells(
                     let Some(key) = key_of(cell) else {
                         continue;
                     };
+                    // Most cells a band reaches are already at p_hi from a
+                    // neighbouring beam: look before computing the chord.
+                    let packed = packed(&key);
+                    if cells.get(&packed).is_some_and(|h| *h >= model.p_hi) {
+                        continue;
+                    }
                     let centre = geometry.center(&key, DEPTH).coords;
                     let Some((a, b)) = ray_box(&grid.origin, inverse, &centre, half) else {
                         continue;
                     };
-                    let slot = cells.get_mut(&packed(&key));
-                    if slot.as_ref().is_some_and(|h| **h >= model.p_hi) {
-                        continue;
-                    }
                     let h = chord_surface(model, beam, a, b, max_range).min(model.p_hi);
-                    match slot {
-                        Some(slot) => *slot = slot.max(h),
-                        None if h > 0.0 => {
-                            cells.insert(packed(&key), h);
-                        }
-                        None => {}
+                    if h > 0.0 {
+                        let slot = cells.entry(packed).or_insert(h);
+                        *slot = slot.max(h);
                     }
                 }
             }
         }
         previous = [range.map(|r| r[0]), range.map(|r| r[1])];
     }
-}
-
-/// `⌊v⌋` for |v| < 2⁶² (saturating beyond), without a libm call.
-#[inline]
-fn floor(v: f64) -> i64 {
-    let truncated = v as i64;
-    truncated - i64::from((truncated as f64) > v)
 }
 
 /// The key of the finest cell with integer coordinates `cell` (floor of the
