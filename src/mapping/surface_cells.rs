@@ -30,8 +30,9 @@ pub fn chord_surface(model: &CellModel, beam: &Beam, a: f64, b: f64, max_range: 
     model.split(beam, a, b, max_range).1 * origin_step(0.5 * (a + b), beam.sigma_origin)
 }
 
-/// `H` of every finest cell some beam's surface band touches with a
-/// positive chord probability (absent: 0 from every beam that crosses it).
+/// `min(H, p_hi)` of every finest cell some beam's surface band touches with
+/// a positive chord probability (absent: 0 from every beam that crosses it;
+/// at `p_hi` the merge's verdict is `p_hi` whatever else is found).
 #[derive(Clone, Debug, Default)]
 pub struct SurfaceCells {
     cells: FxHashMap<u64, f64>,
@@ -71,8 +72,8 @@ impl SurfaceCells {
         Self { cells }
     }
 
-    /// `H` of the finest cell `key` if some beam's band gives it a positive
-    /// value.
+    /// `min(H, p_hi)` of the finest cell `key` if some beam's band gives it
+    /// a positive value.
     #[inline]
     pub fn get(&self, key: &Key) -> Option<f64> {
         self.cells.get(&packed(key)).copied()
