@@ -10,7 +10,7 @@
 //! the finest cells (depth 16 never has children), so a finest cell costs 4
 //! bytes; an unknown slot holds NaN. Freed blocks are reused.
 
-use crate::geometry::Point3;
+use crate::geometry::{floor, Point3};
 
 /// Depth of the finest level.
 pub const DEPTH: u8 = 16;
@@ -275,14 +275,12 @@ impl Octree {
         let mut k = [0u16; 3];
         for (axis, out) in k.iter_mut().enumerate() {
             let v = p[axis] / self.resolution;
-            // Far outside (or NaN): no key. Inside, floor by truncation:
-            // `f64::floor` is a libm call on baseline x86-64, and this
-            // runs twice per ray.
+            // Far outside (or NaN): no key. This runs twice per ray, hence
+            // `geometry::floor` (no libm call).
             if v.is_nan() || v.abs() >= 1e9 {
                 return None;
             }
-            let truncated = v as i64;
-            let v = truncated - ((truncated as f64) > v) as i64 + CENTER;
+            let v = floor(v) + CENTER;
             if !(0..(1 << 16)).contains(&v) {
                 return None;
             }

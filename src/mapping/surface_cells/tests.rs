@@ -5,9 +5,9 @@ use crate::mapping::spherical::{Axis, BeamEnd};
 use rand::{Rng, SeedableRng};
 
 /// A scanner at `origin` looking down −z (grid x = scene −z) at a tilted,
-/// bumpy surface, 0.5° bins; ranges with per-beam σ from 0 to `max_sigma`,
-/// every seventh beam without a return.
-fn random_grid(seed: u64, origin: Vector3, max_sigma: f64) -> LocalGrid {
+/// bumpy surface, 40 × 30 bins of 0.5° with `per_bin` beams each; ranges
+/// with per-beam σ from 0 to `max_sigma`, every seventh beam without a return.
+fn random_grid(seed: u64, origin: Vector3, max_sigma: f64, per_bin: usize) -> LocalGrid {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let scene_from_grid = Matrix3::new(0.0, 1.0, 0.0, 0.0, 0.0, 1.0, -1.0, 0.0, 0.0);
     let step = 0.5f64.to_radians();
@@ -20,35 +20,37 @@ fn random_grid(seed: u64, origin: Vector3, max_sigma: f64) -> LocalGrid {
     let mut ends = Vec::new();
     for i in 0..40 {
         for j in 0..30 {
-            let (az, el) = (azimuth.centre(i), elevation.centre(j));
-            let jitter = rng.random_range(-0.4..0.4) * step;
-            let grid_dir = Vector3::new(
-                el.cos() * (az + jitter).cos(),
-                el.cos() * (az + jitter).sin(),
-                el.sin(),
-            );
-            let d = scene_from_grid * grid_dir;
-            if (i * 30 + j) % 7 == 0 {
-                ends.push(BeamEnd::Miss { direction: d });
-                continue;
+            for _ in 0..per_bin {
+                let (az, el) = (azimuth.centre(i), elevation.centre(j));
+                let jitter = rng.random_range(-0.4..0.4) * step;
+                let grid_dir = Vector3::new(
+                    el.cos() * (az + jitter).cos(),
+                    el.cos() * (az + jitter).sin(),
+                    el.sin(),
+                );
+                let d = scene_from_grid * grid_dir;
+                if (i * 30 + j) % 7 == 0 {
+                    ends.push(BeamEnd::Miss { direction: d });
+                    continue;
+                }
+                // The surface z = 0.1 x + 0.02 sin(40 y), plus noise.
+                let mut t = 0.0;
+                for _ in 0..40 {
+                    let p = origin + d * t;
+                    let gap = p.z - (0.1 * p.x + 0.02 * (40.0 * p.y).sin());
+                    t += gap / (-d.z).max(0.2) * 0.5;
+                }
+                let sigma = if rng.random_bool(0.1) {
+                    0.0
+                } else {
+                    rng.random_range(0.0..max_sigma)
+                };
+                t += rng.random_range(-2.0..2.0) * sigma;
+                ends.push(BeamEnd::Hit {
+                    point: origin + d * t,
+                    covariance: Matrix3::identity() * sigma * sigma,
+                });
             }
-            // The surface z = 0.1 x + 0.02 sin(40 y), plus noise.
-            let mut t = 0.0;
-            for _ in 0..40 {
-                let p = origin + d * t;
-                let gap = p.z - (0.1 * p.x + 0.02 * (40.0 * p.y).sin());
-                t += gap / (-d.z).max(0.2) * 0.5;
-            }
-            let sigma = if rng.random_bool(0.1) {
-                0.0
-            } else {
-                rng.random_range(0.0..max_sigma)
-            };
-            t += rng.random_range(-2.0..2.0) * sigma;
-            ends.push(BeamEnd::Hit {
-                point: origin + d * t,
-                covariance: Matrix3::identity() * sigma * sigma,
-            });
         }
     }
     LocalGrid::new(
@@ -72,7 +74,7 @@ fn the_index_gives_every_cell_the_search_value_bit_for_bit() {
     let mut compared = (0, 0);
     for (seed, resolution, max_sigma) in [(1, 0.005, 0.004), (2, 0.02, 0.006), (3, 0.05, 0.002)] {
         let origin = Vector3::new(0.0013, -0.0021, 0.45);
-        let grid = random_grid(seed, origin, max_sigma);
+        let grid = random_grid(seed, origin, max_sigma, 1);
         let geometry = Octree::new(resolution);
         let half = geometry.node_size(DEPTH) * 0.5;
         for model in [CellModel::default(), CellModel::with_risk(Some(0.05))] {
@@ -113,7 +115,8 @@ fn the_index_gives_every_cell_the_search_value_bit_for_bit() {
 
 #[test]
 fn the_index_is_the_same_whatever_the_thread_count() {
-    let grid = random_grid(4, Vector3::new(0.0, 0.0, 0.4), 0.01);
+    // Ten beams per bin: three parallel chunks of beams, whose cells meet.
+    let grid = random_grid(4, Vector3::new(0.0, 0.0, 0.4), 0.01, 10);
     let geometry = Octree::new(0.004);
     let model = CellModel::default();
     let build = |threads| {
