@@ -45,21 +45,6 @@ impl Axis {
     pub fn end(&self) -> f64 {
         self.start + self.step * self.count as f64
     }
-
-    /// Bins overlapping `[lo, hi]`, clipped; `None` when disjoint. The flag says
-    /// whether `[lo, hi]` reaches outside the axis.
-    fn span(&self, lo: f64, hi: f64) -> Option<(usize, usize, bool)> {
-        let (a, b) = (self.index(lo), self.index(hi));
-        if b < 0 || a >= self.count as isize {
-            return None;
-        }
-        let outside = a < 0 || b >= self.count as isize;
-        Some((
-            a.max(0) as usize,
-            b.min(self.count as isize - 1) as usize,
-            outside,
-        ))
-    }
 }
 
 /// Aggregate of the beams of a box of angular bins.
@@ -141,6 +126,8 @@ pub struct LocalGrid {
     pub elevation: Axis,
     /// The scanner's maximum range (m): how far a no-return beam clears.
     pub max_range: f64,
+    /// [`lookup::ANGLE_SLACK`] in bins of each axis.
+    slack: [f64; 2],
     /// Beams of bin `i = a · elevation.count + e`: `beams[offsets[i]..offsets[i+1]]`.
     offsets: Vec<u32>,
     beams: Vec<Beam>,
@@ -175,6 +162,7 @@ impl LocalGrid {
     ) -> Self {
         let grid_from_scene = scene_from_grid.transpose();
         let bins = azimuth.count * elevation.count;
+        let slack = lookup::slack(&azimuth, &elevation);
         let mut binned: Vec<(u32, Beam)> = Vec::with_capacity(ends.len());
         for end in ends {
             let (direction, range, sigma) = match end {
@@ -193,8 +181,12 @@ impl LocalGrid {
             let sigma_origin = (direction.transpose() * origin_covariance * direction)[0]
                 .max(0.0)
                 .sqrt();
-            let (_, az, el) = spherical(&(grid_from_scene * direction));
-            let (a, e) = (azimuth.index(az), elevation.index(el));
+            let (a, e) = lookup::direction_index(
+                &azimuth,
+                &elevation,
+                slack,
+                &(grid_from_scene * direction),
+            );
             if a < 0 || e < 0 || a >= azimuth.count as isize || e >= elevation.count as isize {
                 continue;
             }
@@ -226,6 +218,7 @@ impl LocalGrid {
             azimuth,
             elevation,
             max_range,
+            slack,
             offsets,
             beams,
             inverse,
@@ -391,57 +384,8 @@ impl LocalGrid {
                 .fold(f64::NEG_INFINITY, f64::max)
         })
     }
-
-    /// The angular bins that may hold any point of the ball of radius
-    /// `radius` around scene point `centre` (a superset), with the ball's
-    /// range interval. `None` when the ball misses the field of view.
-    pub fn ball_bins(&self, centre: &Vector3, radius: f64) -> Option<BinBox> {
-        let c = self.scene_from_grid.transpose() * (centre - self.origin);
-        let (dist, az, el) = spherical(&c);
-        let half_pi = std::f64::consts::FRAC_PI_2;
-        let (el_lo, el_hi, az_lo, az_hi) = if dist <= radius {
-            (
-                -half_pi,
-                half_pi,
-                -std::f64::consts::PI,
-                std::f64::consts::PI,
-            )
-        } else {
-            let beta = (radius / dist).min(1.0).asin();
-            let gamma = if el.abs() + beta < half_pi {
-                (beta.sin() / el.cos()).min(1.0).asin()
-            } else {
-                std::f64::consts::PI
-            };
-            (el - beta, el + beta, az - gamma, az + gamma)
-        };
-        let (e0, e1, e_out) = self.elevation.span(el_lo, el_hi)?;
-        // The grid's azimuths lie within (−π/2, π/2): no wrap to handle unless
-        // the cone covers everything.
-        let (a0, a1, a_out) = self.azimuth.span(az_lo, az_hi)?;
-        Some(BinBox {
-            azimuth: (a0, a1),
-            elevation: (e0, e1),
-            range: ((dist - radius).max(0.0), dist + radius),
-            outside: a_out || e_out,
-            centre: self.bin_at(az, el),
-        })
-    }
-
-    /// The angular bin holding scene point `p`, if any.
-    pub fn bin_of(&self, p: &Vector3) -> Option<(usize, usize)> {
-        let (_, az, el) = spherical(&(self.scene_from_grid.transpose() * (p - self.origin)));
-        self.bin_at(az, el)
-    }
-
-    /// The bin holding direction (`az`, `el`) (grid frame), if any.
-    #[inline]
-    fn bin_at(&self, az: f64, el: f64) -> Option<(usize, usize)> {
-        let (a, e) = (self.azimuth.index(az), self.elevation.index(el));
-        (a >= 0 && e >= 0 && a < self.azimuth.count as isize && e < self.elevation.count as isize)
-            .then_some((a as usize, e as usize))
-    }
 }
 
+mod lookup;
 #[cfg(test)]
 mod tests;
