@@ -92,18 +92,19 @@ pub fn merge_with(
         .collect();
     let mut stats = skeleton.stats;
     let mut tasks = tasks.into_iter();
+    // The search's order is depth first: the tree takes the changes in one walk.
+    let mut changes = Vec::with_capacity(skeleton.updates.len());
     for update in &skeleton.updates {
         match *update {
             Update::Task => {
                 let task = tasks.next().expect("one plan per task");
                 stats.add(&task.stats);
-                task.updates
-                    .iter()
-                    .for_each(|u| u.apply(tree, options.clamp));
+                changes.extend(task.updates.iter().map(Update::change));
             }
-            ref u => u.apply(tree, options.clamp),
+            ref u => changes.push(u.change()),
         }
     }
+    tree.update_depth_first(changes, options.clamp);
     stats
 }
 
@@ -127,10 +128,11 @@ enum Update {
 }
 
 impl Update {
-    fn apply(&self, tree: &mut Octree, clamp: Clamp) {
+    /// `(Morton code, depth, delta)` for [`Octree::update_depth_first`].
+    fn change(&self) -> (u64, u8, f32) {
         match *self {
-            Update::Region { key, depth, delta } => tree.update_region(&key, depth, delta, clamp),
-            Update::Cell { key, delta } => tree.update(&key, delta, clamp),
+            Update::Region { key, depth, delta } => (key.morton(), depth, delta),
+            Update::Cell { key, delta } => (key.morton(), DEPTH, delta),
             Update::Task => unreachable!("tasks are replaced by their updates"),
         }
     }

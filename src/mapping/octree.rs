@@ -422,31 +422,53 @@ impl Octree {
 
     /// Adds `delta` to each finest cell of `codes` (Morton codes, sorted
     /// ascending, no repeats) — the same result as [`Octree::update`] on each,
-    /// but walking the tree once: consecutive cells share their path from the
-    /// root, and each inner node is refreshed once when the walk leaves it.
+    /// but walking the tree once ([`Octree::update_depth_first`]).
     pub fn update_sorted(&mut self, codes: &[u64], delta: f32, clamp: Clamp) {
+        self.update_depth_first(codes.iter().map(|&code| (code, DEPTH, delta)), clamp);
+    }
+
+    /// Applies `(code, depth, delta)` changes in depth-first order (Morton
+    /// code of the node's first cell ascending, no change inside another):
+    /// at depth 16 as [`Octree::update`], above it as
+    /// [`Octree::update_region`] — the same tree as those calls one by one
+    /// (tested), but walking the tree once: consecutive changes share their
+    /// path from the root, and each inner node is refreshed once, when the
+    /// walk leaves it.
+    pub fn update_depth_first(
+        &mut self,
+        changes: impl IntoIterator<Item = (u64, u8, f32)>,
+        clamp: Clamp,
+    ) {
         let mut path = [0usize; DEPTH as usize + 1];
         let mut valid = 0usize; // path[0..=valid] is the current path
         let mut previous: Option<u64> = None;
-        for &code in codes {
+        for (code, target, delta) in changes {
+            let target = usize::from(target);
             let common = match previous {
-                // Depth of the deepest node shared with the previous cell.
-                Some(p) => {
-                    (((p ^ code).leading_zeros() as usize).saturating_sub(16) / 3).min(valid)
-                }
+                // Depth of the deepest node shared with the previous change.
+                Some(p) => (((p ^ code).leading_zeros() as usize).saturating_sub(16) / 3)
+                    .min(valid)
+                    .min(target),
                 None => 0,
             };
+            // Leave the previous change's nodes below `common` (a region's
+            // own node was refreshed by `add_subtree`).
             for d in (common + 1..valid.min(DEPTH as usize)).rev() {
                 self.refresh(path[d], d as u8);
             }
             let mut node = path[common];
             let mut depth = common;
             let mut skipped = false;
-            while depth < DEPTH as usize {
+            while depth < target {
                 let mut block = self.nodes[node].children;
                 if block == NO_CHILDREN {
+                    // A pruned leaf that a finest-cell change leaves as it is
+                    // (clamped) stays pruned, as in `update`.
                     let current = self.nodes[node].value;
-                    if !current.is_nan() && clamp.apply(current + delta) == current {
+                    if target == DEPTH as usize
+                        && !current.is_nan()
+                        && clamp.apply(current + delta) == current
+                    {
                         skipped = true;
                         break;
                     }
@@ -457,9 +479,13 @@ impl Octree {
                 path[depth] = node;
             }
             if !skipped {
-                let leaf = &mut self.finest[node];
-                let base = if leaf.is_nan() { 0.0 } else { *leaf };
-                *leaf = clamp.apply(base + delta);
+                if target == DEPTH as usize {
+                    let leaf = &mut self.finest[node];
+                    let base = if leaf.is_nan() { 0.0 } else { *leaf };
+                    *leaf = clamp.apply(base + delta);
+                } else {
+                    self.add_subtree(node, target as u8, delta, clamp);
+                }
             }
             valid = depth;
             previous = Some(code);

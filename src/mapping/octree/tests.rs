@@ -217,3 +217,69 @@ fn sorted_batch_update_equals_one_by_one() {
         }
     }
 }
+
+#[test]
+fn depth_first_changes_equal_one_by_one() {
+    // Cells and regions (nodes of depth 12 to 15) mixed, in depth-first
+    // order, over a few rounds on the same trees: changes meet pruned leaves,
+    // unknown cells, clamped values and regions over finer structure.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+    for round in 0..30 {
+        let (mut batch, mut single) = (Octree::new(0.05), Octree::new(0.05));
+        let clamp = if round % 2 == 0 {
+            Clamp::OCTOMAP
+        } else {
+            Clamp::NONE
+        };
+        for _ in 0..6 {
+            let mut nodes: Vec<(u64, u8)> = (0..rng.random_range(1..400))
+                .map(|_| {
+                    let depth = if rng.random_bool(0.7) {
+                        DEPTH
+                    } else {
+                        rng.random_range(12..DEPTH)
+                    };
+                    let mask = !0u16 << (DEPTH - depth);
+                    let key = Key([
+                        (32752 + rng.random_range(0..32)) & mask,
+                        (32752 + rng.random_range(0..32)) & mask,
+                        (32760 + rng.random_range(0..16)) & mask,
+                    ]);
+                    (key.morton(), depth)
+                })
+                .collect();
+            nodes.sort_unstable();
+            // Keep a node only when it starts past the last kept one's cells.
+            let mut end = 0u64;
+            nodes.retain(|&(code, depth)| {
+                let keep = code >= end;
+                if keep {
+                    end = code + (1u64 << (3 * (DEPTH - depth) as u32));
+                }
+                keep
+            });
+            let changes: Vec<(u64, u8, f32)> = nodes
+                .iter()
+                .map(|&(code, depth)| {
+                    let delta = match rng.random_range(0..3) {
+                        0 => LOG_ODDS_HIT,
+                        1 => LOG_ODDS_MISS,
+                        _ => 3.0 * rng.random_range(-1.0..1.0f32),
+                    };
+                    (code, depth, delta)
+                })
+                .collect();
+            batch.update_depth_first(changes.iter().copied(), clamp);
+            for &(code, depth, delta) in &changes {
+                let key = Key::from_morton(code);
+                if depth == DEPTH {
+                    single.update(&key, delta, clamp);
+                } else {
+                    single.update_region(&key, depth, delta, clamp);
+                }
+            }
+            assert_eq!(batch, single);
+            assert_eq!(batch.stats().nodes, single.stats().nodes);
+        }
+    }
+}
