@@ -16,6 +16,7 @@
 
 use super::chord::{Beam, TAIL};
 use crate::geometry::{floor, Matrix3, Vector3};
+use rayon::prelude::*;
 
 /// A bin axis: `count` bins of `step` from `start`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -113,6 +114,34 @@ pub fn spherical(v: &Vector3) -> (f64, f64, f64) {
     (r, v.y.atan2(v.x), v.z.atan2((v.x * v.x + v.y * v.y).sqrt()))
 }
 
+/// The placeholder of a beam left out of the grid (sorted past the last bin
+/// and cut off).
+const LEFT_OUT: Beam = Beam {
+    direction: Vector3::new(0.0, 0.0, 0.0),
+    range: 0.0,
+    sigma: 0.0,
+    sigma_origin: 0.0,
+};
+
+/// `f(a, e)` for every bin of an `na` × `ne` grid, row by row (`a` major),
+/// the rows in parallel.
+fn per_bin<T: Copy + Send + Sync>(
+    na: usize,
+    ne: usize,
+    fill: T,
+    f: impl Fn(usize, usize) -> T + Sync,
+) -> Vec<T> {
+    let mut out = vec![fill; na * ne];
+    out.par_chunks_mut(ne.max(1))
+        .enumerate()
+        .for_each(|(a, row)| {
+            for (e, slot) in row.iter_mut().enumerate() {
+                *slot = f(a, e);
+            }
+        });
+    out
+}
+
 /// A filled local grid.
 #[derive(Clone, Debug)]
 pub struct LocalGrid {
@@ -163,46 +192,49 @@ impl LocalGrid {
         let grid_from_scene = scene_from_grid.transpose();
         let bins = azimuth.count * elevation.count;
         let slack = lookup::slack(&azimuth, &elevation);
-        let mut binned: Vec<(u32, Beam)> = Vec::with_capacity(ends.len());
-        for end in ends {
-            let (direction, range, sigma) = match end {
-                BeamEnd::Hit { point, covariance } => {
-                    let d = point - origin;
-                    let r = d.norm();
-                    if r.is_nan() || r <= 0.0 {
-                        continue;
+        // Each beam with its bin, in input order; `bins` (one past the last
+        // bin) marks a beam left out, so the sort puts those last.
+        let mut binned: Vec<(u32, Beam)> = ends
+            .par_iter()
+            .map(|end| {
+                let left_out = (bins as u32, LEFT_OUT);
+                let (direction, range, sigma) = match end {
+                    BeamEnd::Hit { point, covariance } => {
+                        let d = point - origin;
+                        let r = d.norm();
+                        if r.is_nan() || r <= 0.0 {
+                            return left_out;
+                        }
+                        let v = d / r;
+                        let sigma2 = (v.transpose() * covariance * v)[0].max(0.0);
+                        (v, r, sigma2.sqrt())
                     }
-                    let v = d / r;
-                    let sigma2 = (v.transpose() * covariance * v)[0].max(0.0);
-                    (v, r, sigma2.sqrt())
+                    BeamEnd::Miss { direction } => (direction.normalize(), f64::INFINITY, 0.0),
+                };
+                let sigma_origin = (direction.transpose() * origin_covariance * direction)[0]
+                    .max(0.0)
+                    .sqrt();
+                let (a, e) = lookup::direction_index(
+                    &azimuth,
+                    &elevation,
+                    slack,
+                    &(grid_from_scene * direction),
+                );
+                if a < 0 || e < 0 || a >= azimuth.count as isize || e >= elevation.count as isize {
+                    return left_out;
                 }
-                BeamEnd::Miss { direction } => (direction.normalize(), f64::INFINITY, 0.0),
-            };
-            let sigma_origin = (direction.transpose() * origin_covariance * direction)[0]
-                .max(0.0)
-                .sqrt();
-            let (a, e) = lookup::direction_index(
-                &azimuth,
-                &elevation,
-                slack,
-                &(grid_from_scene * direction),
-            );
-            if a < 0 || e < 0 || a >= azimuth.count as isize || e >= elevation.count as isize {
-                continue;
-            }
-            let bin = a as usize * elevation.count + e as usize;
-            binned.push((
-                bin as u32,
-                Beam {
+                let beam = Beam {
                     direction,
                     range,
                     sigma,
                     sigma_origin,
-                },
-            ));
-        }
+                };
+                ((a as usize * elevation.count + e as usize) as u32, beam)
+            })
+            .collect();
         // Stable (radix): beams keep their input order within a bin.
         radsort::sort_by_key(&mut binned, |(bin, _)| *bin);
+        binned.truncate(binned.partition_point(|(bin, _)| (*bin as usize) < bins));
         let mut offsets = vec![0u32; bins + 1];
         for (bin, _) in &binned {
             offsets[*bin as usize + 1] += 1;
@@ -210,8 +242,11 @@ impl LocalGrid {
         for i in 0..bins {
             offsets[i + 1] += offsets[i];
         }
-        let beams: Vec<Beam> = binned.into_iter().map(|(_, beam)| beam).collect();
-        let inverse = beams.iter().map(|b| b.direction.map(|c| 1.0 / c)).collect();
+        let beams: Vec<Beam> = binned.par_iter().map(|(_, beam)| *beam).collect();
+        let inverse = beams
+            .par_iter()
+            .map(|b| b.direction.map(|c| 1.0 / c))
+            .collect();
         let mut grid = Self {
             origin,
             scene_from_grid,
@@ -271,73 +306,69 @@ impl LocalGrid {
     /// its σ is the largest of the beams involved.
     fn build_surfaces(&mut self) {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
-        let own: Vec<Option<Beam>> = (0..na * ne)
-            .map(|bin| {
-                let (beams, _) = self.bin_beams(bin / ne, bin % ne);
-                beams.iter().copied().reduce(|best, b| Beam {
-                    sigma: best.sigma.max(b.sigma),
-                    sigma_origin: best.sigma_origin.max(b.sigma_origin),
-                    ..if b.range < best.range { b } else { best }
-                })
+        let own = per_bin(na, ne, None, |a, e| {
+            let (beams, _) = self.bin_beams(a, e);
+            beams.iter().copied().reduce(|best, b| Beam {
+                sigma: best.sigma.max(b.sigma),
+                sigma_origin: best.sigma_origin.max(b.sigma_origin),
+                ..if b.range < best.range { b } else { best }
             })
-            .collect();
-        self.surfaces = (0..na * ne)
-            .map(|bin| {
-                let mut surface = own[bin]?;
-                let base = surface.range;
-                let (a, e) = (bin / ne, bin % ne);
-                // The 3 x 3 neighbourhood; the bin itself never lowers `base`.
-                for x in a.saturating_sub(1)..=(a + 1).min(na - 1) {
-                    for y in e.saturating_sub(1)..=(e + 1).min(ne - 1) {
-                        let Some(other) = own[x * ne + y] else {
-                            continue;
-                        };
-                        let bound = if base.is_finite() {
-                            0.5 * (base + other.range)
-                        } else {
-                            other.range
-                        };
-                        if bound < surface.range {
-                            surface.range = bound;
-                            surface.sigma = surface.sigma.max(other.sigma);
-                        }
+        });
+        self.surfaces = per_bin(na, ne, None, |a, e| {
+            let mut surface = own[a * ne + e]?;
+            let base = surface.range;
+            // The 3 x 3 neighbourhood; the bin itself never lowers `base`.
+            for x in a.saturating_sub(1)..=(a + 1).min(na - 1) {
+                for y in e.saturating_sub(1)..=(e + 1).min(ne - 1) {
+                    let Some(other) = own[x * ne + y] else {
+                        continue;
+                    };
+                    let bound = if base.is_finite() {
+                        0.5 * (base + other.range)
+                    } else {
+                        other.range
+                    };
+                    if bound < surface.range {
+                        surface.range = bound;
+                        surface.sigma = surface.sigma.max(other.sigma);
                     }
                 }
-                Some(surface)
-            })
-            .collect();
+            }
+            Some(surface)
+        });
     }
 
     fn build_pyramid(&mut self) {
         let mut dims = [self.azimuth.count, self.elevation.count];
-        let mut cells = Vec::with_capacity(dims[0] * dims[1]);
-        for a in 0..dims[0] {
-            for e in 0..dims[1] {
-                let mut s = BoxSummary::EMPTY;
-                let (beams, _) = self.bin_beams(a, e);
-                for b in beams {
-                    s.near = s.near.min(b.band_start(self.max_range));
-                    s.far = s.far.max(b.reach(self.max_range));
-                    s.origin = s.origin.max(TAIL * b.sigma_origin);
-                }
-                if let Some(surface) = self.bin_surface(a, e) {
-                    s.near = s.near.min(surface.band_start(self.max_range));
-                }
-                s.filled = u32::from(!beams.is_empty());
-                s.bins = 1;
-                cells.push(s);
+        let cells = per_bin(dims[0], dims[1], BoxSummary::EMPTY, |a, e| {
+            let mut s = BoxSummary::EMPTY;
+            let (beams, _) = self.bin_beams(a, e);
+            for b in beams {
+                s.near = s.near.min(b.band_start(self.max_range));
+                s.far = s.far.max(b.reach(self.max_range));
+                s.origin = s.origin.max(TAIL * b.sigma_origin);
             }
-        }
+            if let Some(surface) = self.bin_surface(a, e) {
+                s.near = s.near.min(surface.band_start(self.max_range));
+            }
+            s.filled = u32::from(!beams.is_empty());
+            s.bins = 1;
+            s
+        });
         self.levels = vec![Level { dims, cells }];
         while dims.iter().any(|&d| d > 1) {
             let prev = self.levels.last().expect("level 0");
             let next_dims = dims.map(|d| d.div_ceil(2));
-            let mut next = vec![BoxSummary::EMPTY; next_dims[0] * next_dims[1]];
-            for a in 0..dims[0] {
-                for e in 0..dims[1] {
-                    next[(a / 2) * next_dims[1] + e / 2].add(&prev.cells[a * dims[1] + e]);
+            // Each tile of the next level aggregates its (up to) 2 × 2 cells.
+            let next = per_bin(next_dims[0], next_dims[1], BoxSummary::EMPTY, |ta, te| {
+                let mut s = BoxSummary::EMPTY;
+                for a in 2 * ta..(2 * ta + 2).min(dims[0]) {
+                    for e in 2 * te..(2 * te + 2).min(dims[1]) {
+                        s.add(&prev.cells[a * dims[1] + e]);
+                    }
                 }
-            }
+                s
+            });
             dims = next_dims;
             self.levels.push(Level { dims, cells: next });
         }
