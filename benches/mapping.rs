@@ -3,7 +3,9 @@
 //! at 2 cm, one core. Printed: beams/s, each method's ratio to the ray update
 //! measured in the same run, and bytes per leaf beside OctoMap's layout
 //! (16 bytes per node + 64 per inner node); then one map built on two
-//! cores against one (same tree asserted). The side-by-side run against
+//! cores against one (same tree asserted), beside what two cores give on
+//! pure computation and on memory bandwidth in the same run (this machine's
+//! ceiling for that ratio). The side-by-side run against
 //! OctoMap itself is `bash benches/octomap/compare.sh`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -101,6 +103,51 @@ fn bench(c: &mut Criterion) {
             method.as_str(),
             one_core,
             two_cores,
+            one_core / two_cores
+        );
+    }
+    two_core_ceiling(&pool, &two);
+}
+
+/// What two cores can give at best on this machine, measured beside the
+/// maps: the same work split in two halves, timed on one core and on two.
+/// `compute` keeps eight independent floating-point chains in registers (no
+/// memory traffic); `memory` sums a 64 MiB array (bandwidth-bound).
+fn two_core_ceiling(one: &rayon::ThreadPool, two: &rayon::ThreadPool) {
+    fn compute(steps: usize) -> f64 {
+        let mut x = [1.0f64, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7];
+        for _ in 0..steps {
+            for v in &mut x {
+                *v = (*v * 0.999_999 + 1e-6).sqrt() + 1e-9;
+            }
+        }
+        x.iter().sum()
+    }
+    let data: Vec<f64> = (0..8 << 20).map(|i| i as f64).collect();
+    let memory = |half: &[f64]| -> f64 { (0..4).map(|_| half.iter().sum::<f64>()).sum() };
+    let (lo, hi) = data.split_at(data.len() / 2);
+    let halves = |pool: &rayon::ThreadPool, work: &(dyn Fn(usize) -> f64 + Sync)| {
+        pool.install(|| {
+            let start = Instant::now();
+            let (a, b) = rayon::join(|| work(0), || work(1));
+            black_box(a + b);
+            start.elapsed().as_secs_f64()
+        })
+    };
+    let best = |pool: &rayon::ThreadPool, work: &(dyn Fn(usize) -> f64 + Sync)| {
+        (0..5)
+            .map(|_| halves(pool, work))
+            .fold(f64::INFINITY, f64::min)
+    };
+    println!("\nthis machine's two-core ceiling (the same work in two halves, best of 5; ratio: one core / two):");
+    let kernels: [(&str, &(dyn Fn(usize) -> f64 + Sync)); 2] = [
+        ("compute", &|_| compute(black_box(20_000_000))),
+        ("memory", &|i| memory(if i == 0 { lo } else { hi })),
+    ];
+    for (name, work) in kernels {
+        let (one_core, two_cores) = (best(one, work), best(two, work));
+        println!(
+            "  {name:<11} {one_core:6.3} s on one core, {two_cores:6.3} s on two: {:5.2}x",
             one_core / two_cores
         );
     }
