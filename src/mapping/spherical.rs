@@ -220,16 +220,16 @@ impl LocalGrid {
                     slack,
                     &(grid_from_scene * direction),
                 );
-                if a < 0 || e < 0 || a >= azimuth.count as isize || e >= elevation.count as isize {
+                let Some((a, e)) = lookup::bin_in(&azimuth, &elevation, a, e) else {
                     return left_out;
-                }
+                };
                 let beam = Beam {
                     direction,
                     range,
                     sigma,
                     sigma_origin,
                 };
-                ((a as usize * elevation.count + e as usize) as u32, beam)
+                ((a * elevation.count + e) as u32, beam)
             })
             .collect();
         // Stable (radix): beams keep their input order within a bin.

@@ -51,6 +51,18 @@ impl Axis {
     }
 }
 
+/// Bin `(a, e)` (unclamped indices) if it lies on both axes.
+#[inline]
+pub(super) fn bin_in(
+    azimuth: &Axis,
+    elevation: &Axis,
+    a: isize,
+    e: isize,
+) -> Option<(usize, usize)> {
+    (a >= 0 && e >= 0 && a < azimuth.count as isize && e < elevation.count as isize)
+        .then_some((a as usize, e as usize))
+}
+
 /// The slack of [`ANGLE_SLACK`] in bins of each axis.
 pub(super) fn slack(azimuth: &Axis, elevation: &Axis) -> [f64; 2] {
     [ANGLE_SLACK / azimuth.step, ANGLE_SLACK / elevation.step]
@@ -192,8 +204,7 @@ impl LocalGrid {
     /// Bin `(a, e)` (unclamped indices) if it is in the grid.
     #[inline]
     fn bin_at(&self, a: isize, e: isize) -> Option<(usize, usize)> {
-        (a >= 0 && e >= 0 && a < self.azimuth.count as isize && e < self.elevation.count as isize)
-            .then_some((a as usize, e as usize))
+        bin_in(&self.azimuth, &self.elevation, a, e)
     }
 }
 
