@@ -14,7 +14,7 @@ use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::BeamEnd;
 use crate::mapping::surface_cells::SurfaceCells;
-use crate::mapping::viewpoint::{local_grid, Raster};
+use crate::mapping::viewpoint::{local_grid_of, Raster};
 use crate::mapping::{Clamp, MapSettings, Octree};
 use crate::sim::scan::{BeamStatus, Measurement, Scan};
 use crate::sim::sensor::RangeModel;
@@ -149,39 +149,39 @@ pub fn scan_chain(scan: &Scan) -> UncertainChain {
     )
 }
 
-/// The propagated beam ends of one scan (hits with covariances, no-return
-/// beams as directions; too-close and dropped beams carry nothing), from
-/// the scan's [`measured_points`].
-pub fn beam_ends(
-    view: &MapperView,
-    scan: &Scan,
-    points: &[Option<UncertainPoint>],
-    propagator: &dyn Propagator,
-) -> Vec<BeamEnd> {
-    let rotation = scan
-        .chain
+/// The nominal rotation of a scan's sensor, scene from camera.
+fn camera_rotation(scan: &Scan) -> Matrix3 {
+    scan.chain
         .scene_from_camera()
         .rotation
         .to_rotation_matrix()
-        .into_inner();
-    scan.measurements
-        .par_iter()
-        .zip(view.scanner.directions.par_iter())
-        .zip(points.par_iter())
-        .filter_map(|((m, d), point)| match (m.status, point) {
-            (BeamStatus::Hit, Some(point)) => {
-                let g = propagator.propagate(point);
-                Some(BeamEnd::Hit {
-                    point: g.mean,
-                    covariance: g.covariance,
-                })
-            }
-            (BeamStatus::NoReturn, _) => Some(BeamEnd::Miss {
-                direction: rotation * d,
-            }),
-            _ => None,
-        })
-        .collect()
+        .into_inner()
+}
+
+/// One beam's propagated end, scene frame, from its measurement `m`,
+/// camera-frame direction `d` and measured point: a hit with its
+/// covariance, a no-return beam as its direction; a too-close or dropped
+/// beam carries nothing.
+fn beam_end(
+    m: &Measurement,
+    d: &Vector3,
+    point: Option<&UncertainPoint>,
+    propagator: &dyn Propagator,
+    scene_from_camera: &Matrix3,
+) -> Option<BeamEnd> {
+    match (m.status, point) {
+        (BeamStatus::Hit, Some(point)) => {
+            let g = propagator.propagate(point);
+            Some(BeamEnd::Hit {
+                point: g.mean,
+                covariance: g.covariance,
+            })
+        }
+        (BeamStatus::NoReturn, _) => Some(BeamEnd::Miss {
+            direction: scene_from_camera * d,
+        }),
+        _ => None,
+    }
 }
 
 /// The measured point of each beam in the camera frame with its covariance
@@ -189,21 +189,17 @@ pub fn beam_ends(
 /// pooled on the viewpoint's local plane (docs/math.md §5.5). The same for
 /// every method: compute it once per scan.
 pub fn measured_points(view: &MapperView, scan: &Scan) -> Vec<Option<UncertainPoint>> {
-    let range = view.range;
     let directions = &view.scanner.directions;
-    let point = |d: &Vector3, (r, sigma): (f64, f64)| UncertainPoint {
-        mean: d * r,
-        covariance: range.point_covariance_with(d, r, sigma),
-    };
-    let hit = |m: &Measurement| (m.status == BeamStatus::Hit).then_some(m.range);
     if !view.settings.beam_pooling {
         return scan
             .measurements
             .par_iter()
             .zip(directions.par_iter())
-            .map(|(m, d)| hit(m).map(|r| point(d, (r, range.sigma(r)))))
+            .map(|(m, d)| raw_point(view.range, m, d))
             .collect();
     }
+    let range = view.range;
+    let hit = |m: &Measurement| (m.status == BeamStatus::Hit).then_some(m.range);
     let ranges: Vec<Option<f64>> = scan.measurements.iter().map(hit).collect();
     let pooled = pool_ranges(view.scanner.columns, directions, &ranges, |r| {
         range.sigma(r)
@@ -211,8 +207,21 @@ pub fn measured_points(view: &MapperView, scan: &Scan) -> Vec<Option<UncertainPo
     pooled
         .iter()
         .zip(directions)
-        .map(|(p, d)| p.map(|p| point(d, p)))
+        .map(|(p, d)| p.map(|(r, sigma)| camera_point(range, d, r, sigma)))
         .collect()
+}
+
+/// A hit's measured point from its raw range (see [`measured_points`]).
+fn raw_point(range: &RangeModel, m: &Measurement, d: &Vector3) -> Option<UncertainPoint> {
+    (m.status == BeamStatus::Hit).then(|| camera_point(range, d, m.range, range.sigma(m.range)))
+}
+
+/// The camera-frame point at range `r` along `d`, range noise `sigma`.
+fn camera_point(range: &RangeModel, d: &Vector3, r: f64, sigma: f64) -> UncertainPoint {
+    UncertainPoint {
+        mean: d * r,
+        covariance: range.point_covariance_with(d, r, sigma),
+    }
 }
 
 /// Builds the map of a run's `scans` at `resolution` with `method`, in the
@@ -231,8 +240,8 @@ pub fn build_map(
 
 /// [`build_map`] from the scans' [`measured_points`] (one per scan; unused
 /// by the ray update), when they are computed once for all methods of a
-/// run; `None`: each scan's are computed as its grid is built, and dropped
-/// with it.
+/// run; `None`: each beam's is computed as its grid is built (with
+/// `beam_pooling`, each scan's, and dropped with its grid).
 pub fn build_map_measured(
     view: &MapperView,
     scans: &[Scan],
@@ -290,27 +299,36 @@ pub fn build_map_measured(
         };
         let propagator = propagator(method, &chain).expect("an OPDF method has a propagator");
         let origin = propagator.origin();
-        let computed;
-        let points = match measured {
-            Some(measured) => &measured[i],
-            None => {
-                computed = measured_points(view, scan);
-                &computed
-            }
-        };
-        let mut beams = beam_ends(view, scan, points, propagator.as_ref());
-        for beam in &mut beams {
-            if let BeamEnd::Hit { point, .. } = beam {
+        // Each beam's end is computed as it is binned: without pooling its
+        // measured point too, so neither is ever held for the whole scan.
+        let pooled =
+            (measured.is_none() && view.settings.beam_pooling).then(|| measured_points(view, scan));
+        let points = measured.map(|m| &m[i]).or(pooled.as_ref());
+        let scene_from_camera = camera_rotation(scan);
+        let directions = &view.scanner.directions;
+        let end = |k: usize| {
+            let (m, d) = (&scan.measurements[k], &directions[k]);
+            let raw;
+            let point = match points {
+                Some(points) => points[k].as_ref(),
+                None => {
+                    raw = raw_point(view.range, m, d);
+                    raw.as_ref()
+                }
+            };
+            let mut end = beam_end(m, d, point, propagator.as_ref(), &scene_from_camera)?;
+            if let BeamEnd::Hit { point, .. } = &mut end {
                 *point += offset;
             }
-        }
+            Some(end)
+        };
         let rotation = chain.nominal().rotation.to_rotation_matrix().into_inner();
-        let grid = local_grid(
+        let grid = local_grid_of(
             &(origin.mean + offset),
             &origin.covariance,
             &rotation,
             raster,
-            &beams,
+            (scan.measurements.len(), end),
             max_range,
         );
         let surfaces = SurfaceCells::new(&grid, &options.model, &geometry);

@@ -189,15 +189,41 @@ impl LocalGrid {
         ends: &[BeamEnd],
         origin_covariance: &Matrix3,
     ) -> Self {
+        Self::from_ends(
+            origin,
+            scene_from_grid,
+            azimuth,
+            elevation,
+            max_range,
+            (ends.len(), |i| Some(ends[i])),
+            origin_covariance,
+        )
+    }
+
+    /// [`LocalGrid::new`] from `(count, end)`: beam `i < count` ends at
+    /// `end(i)` (`None`: it carries nothing), computed as it is binned, so
+    /// the ends are never held at once.
+    pub fn from_ends(
+        origin: Vector3,
+        scene_from_grid: Matrix3,
+        azimuth: Axis,
+        elevation: Axis,
+        max_range: f64,
+        (count, end): (usize, impl Fn(usize) -> Option<BeamEnd> + Sync),
+        origin_covariance: &Matrix3,
+    ) -> Self {
         let grid_from_scene = scene_from_grid.transpose();
         let bins = azimuth.count * elevation.count;
         let slack = lookup::slack(&azimuth, &elevation);
         // Each beam with its bin, in input order; `bins` (one past the last
         // bin) marks a beam left out, so the sort puts those last.
-        let mut binned: Vec<(u32, Beam)> = ends
-            .par_iter()
-            .map(|end| {
+        let (keys, unbinned): (Vec<u32>, Vec<Beam>) = (0..count)
+            .into_par_iter()
+            .map(|i| {
                 let left_out = (bins as u32, LEFT_OUT);
+                let Some(end) = end(i) else {
+                    return left_out;
+                };
                 let (direction, range, sigma) = match end {
                     BeamEnd::Hit { point, covariance } => {
                         let d = point - origin;
@@ -231,18 +257,27 @@ impl LocalGrid {
                 };
                 ((a * elevation.count + e) as u32, beam)
             })
+            .unzip();
+        // The beams' order by bin, sorted as (bin, index) pairs: stable
+        // (radix), so beams keep their input order within a bin.
+        let mut order: Vec<(u32, u32)> = keys
+            .par_iter()
+            .enumerate()
+            .map(|(i, &bin)| (bin, i as u32))
             .collect();
-        // Stable (radix): beams keep their input order within a bin.
-        radsort::sort_by_key(&mut binned, |(bin, _)| *bin);
-        binned.truncate(binned.partition_point(|(bin, _)| (*bin as usize) < bins));
+        radsort::sort_by_key(&mut order, |&(bin, _)| bin);
+        order.truncate(order.partition_point(|&(bin, _)| (bin as usize) < bins));
         let mut offsets = vec![0u32; bins + 1];
-        for (bin, _) in &binned {
-            offsets[*bin as usize + 1] += 1;
+        for &(bin, _) in &order {
+            offsets[bin as usize + 1] += 1;
         }
         for i in 0..bins {
             offsets[i + 1] += offsets[i];
         }
-        let beams: Vec<Beam> = binned.par_iter().map(|(_, beam)| *beam).collect();
+        let beams: Vec<Beam> = order
+            .par_iter()
+            .map(|&(_, i)| unbinned[i as usize])
+            .collect();
         let inverse = beams
             .par_iter()
             .map(|b| b.direction.map(|c| 1.0 / c))

@@ -39,6 +39,27 @@ pub fn local_grid(
     beams: &[BeamEnd],
     max_range: f64,
 ) -> LocalGrid {
+    let ends = (beams.len(), |i: usize| Some(beams[i]));
+    local_grid_of(
+        origin,
+        origin_covariance,
+        scene_from_camera,
+        raster,
+        ends,
+        max_range,
+    )
+}
+
+/// [`local_grid`] from `(count, end)`: beam `i < count` ends at `end(i)`,
+/// computed as it is binned ([`LocalGrid::from_ends`]).
+pub fn local_grid_of(
+    origin: &Vector3,
+    origin_covariance: &Matrix3,
+    scene_from_camera: &Matrix3,
+    raster: Raster,
+    ends: (usize, impl Fn(usize) -> Option<BeamEnd> + Sync),
+    max_range: f64,
+) -> LocalGrid {
     // Grid x = camera z (boresight), grid y = camera x, grid z = camera y.
     let camera_from_grid = Matrix3::new(0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0);
     let scene_from_grid = scene_from_camera * camera_from_grid;
@@ -52,13 +73,13 @@ pub fn local_grid(
     } else {
         h_step
     };
-    LocalGrid::new(
+    LocalGrid::from_ends(
         *origin,
         scene_from_grid,
         angle_axis(raster.horizontal, v_step),
         angle_axis(raster.vertical, h_step),
         max_range,
-        beams,
+        ends,
         origin_covariance,
     )
 }
