@@ -186,7 +186,7 @@ mod tests {
     #[test]
     fn shipped_profiles_load() {
         let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("experiments/profiles");
-        for name in ["industrial", "collaborative", "stressed"] {
+        for name in ["industrial", "collaborative", "stressed", "quiet_sensor"] {
             let p = ErrorProfile::load(&dir.join(format!("{name}.toml"))).unwrap();
             assert!(!p.description.is_empty(), "{name} documents its sources");
         }
