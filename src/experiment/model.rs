@@ -438,6 +438,7 @@ pub fn ray_inputs_into(
 mod tests {
     use super::*;
     use crate::geometry::Pose;
+    use crate::mapping::octree::{Key, DEPTH};
     use crate::uncertainty::UncertainPose;
     use std::path::Path;
 
@@ -469,6 +470,41 @@ mod tests {
         assert!(shared.links[1].pose.is_exact());
         assert!(shared.links[2].pose.covariance[(0, 0)] > 0.0);
         assert!(own.links[1].pose.covariance[(0, 0)] > 0.0);
+    }
+
+    #[test]
+    fn a_whole_cell_offset_shifts_the_map_by_that_cell() {
+        // The map frame is `scene + offset` for origins and hits alike: a
+        // whole-cell offset moves every cell's value to the cell that many
+        // keys away, up to the rounding of a point near a cell face.
+        let experiment = quickstart();
+        let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+        let view = MapperView::of(&experiment);
+        let resolution = 0.02;
+        let shift = [3i32, -2, 1];
+        let offset = Vector3::from(shift.map(|s| f64::from(s) * resolution));
+        for method in [Method::Unscented, Method::RayUpdate] {
+            let map = |offset: &Vector3| {
+                build_map(&view, &run.scans, method, resolution, offset).unwrap()
+            };
+            let (still, moved) = (map(&Vector3::zeros()), map(&offset));
+            let leaves = still.leaves();
+            let differ = leaves
+                .iter()
+                .filter(|leaf| {
+                    let key = Key(std::array::from_fn(|a| {
+                        (i32::from(leaf.key.0[a]) + shift[a]) as u16
+                    }));
+                    let there = moved.query(&key, DEPTH);
+                    there.is_none_or(|v| (v - leaf.value).abs() > 0.05)
+                })
+                .count();
+            assert!(
+                differ * 500 < leaves.len(),
+                "{method}: {differ} of {} leaves moved elsewhere",
+                leaves.len()
+            );
+        }
     }
 
     #[test]
