@@ -308,15 +308,14 @@ pub fn build_map_measured(
         let directions = &view.scanner.directions;
         let end = |k: usize| {
             let (m, d) = (&scan.measurements[k], &directions[k]);
-            let raw;
-            let point = match points {
-                Some(points) => points[k].as_ref(),
-                None => {
-                    raw = raw_point(view.range, m, d);
-                    raw.as_ref()
-                }
-            };
-            let mut end = beam_end(m, d, point, propagator.as_ref(), &scene_from_camera)?;
+            let point = points.map_or_else(|| raw_point(view.range, m, d), |points| points[k]);
+            let mut end = beam_end(
+                m,
+                d,
+                point.as_ref(),
+                propagator.as_ref(),
+                &scene_from_camera,
+            )?;
             if let BeamEnd::Hit { point, .. } = &mut end {
                 *point += offset;
             }

@@ -215,12 +215,12 @@ impl LocalGrid {
         let grid_from_scene = scene_from_grid.transpose();
         let bins = azimuth.count * elevation.count;
         let slack = lookup::slack(&azimuth, &elevation);
-        // Each beam with its bin, in input order; `bins` (one past the last
-        // bin) marks a beam left out, so the sort puts those last.
-        let (keys, unbinned): (Vec<u32>, Vec<Beam>) = (0..count)
+        // Each beam's (bin, index) and the beam, in input order; `bins` (one
+        // past the last bin) marks a beam left out, so the sort puts those last.
+        let (mut order, unbinned): (Vec<(u32, u32)>, Vec<Beam>) = (0..count)
             .into_par_iter()
             .map(|i| {
-                let left_out = (bins as u32, LEFT_OUT);
+                let left_out = ((bins as u32, i as u32), LEFT_OUT);
                 let Some(end) = end(i) else {
                     return left_out;
                 };
@@ -255,16 +255,11 @@ impl LocalGrid {
                     sigma,
                     sigma_origin,
                 };
-                ((a * elevation.count + e) as u32, beam)
+                (((a * elevation.count + e) as u32, i as u32), beam)
             })
             .unzip();
-        // The beams' order by bin, sorted as (bin, index) pairs: stable
-        // (radix), so beams keep their input order within a bin.
-        let mut order: Vec<(u32, u32)> = keys
-            .par_iter()
-            .enumerate()
-            .map(|(i, &bin)| (bin, i as u32))
-            .collect();
+        // Sorted as (bin, index) pairs, stable (radix): beams keep their
+        // input order within a bin.
         radsort::sort_by_key(&mut order, |&(bin, _)| bin);
         order.truncate(order.partition_point(|&(bin, _)| (bin as usize) < bins));
         let mut offsets = vec![0u32; bins + 1];
