@@ -235,3 +235,80 @@ fn score_gives_a_maps_run_row() {
     assert_eq!(refused.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("resolution is 0.02 m"), "{stderr}");
 }
+
+#[test]
+fn the_registered_truth_is_mapped_and_scored_as_run_scores_it() {
+    // `sigmap map --method registered_truth` writes the reference that `run`
+    // scores; recorded scans have no truth to give it.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = portable_quickstart()
+        .replace("seeds = [1, 2, 3]", "seeds = [2]")
+        .replace(
+            "methods = [\"blind\", \"unscented\", \"ray_update\"]",
+            "methods = [\"registered_truth\"]",
+        );
+    let experiment = d.join("quickstart.toml");
+    std::fs::write(&experiment, text).unwrap();
+    let e = experiment.to_str().unwrap();
+    let (map, run_dir, csv) = (d.join("truth.ot"), d.join("run"), d.join("scores.csv"));
+    let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    sigmap_ok(&[
+        "map",
+        e,
+        "--method",
+        "registered_truth",
+        "--seed",
+        "2",
+        "-q",
+        "--out",
+        &path(&map),
+    ]);
+    sigmap_ok(&["run", e, "-q", "--out", &path(&run_dir)]);
+    sigmap_ok(&[
+        "score",
+        &path(&map),
+        e,
+        "--seed",
+        "2",
+        "-q",
+        "--csv",
+        &path(&csv),
+    ]);
+    let rows = |path: &std::path::Path| -> Vec<Vec<String>> {
+        csv::Reader::from_path(path)
+            .unwrap()
+            .records()
+            .map(|r| r.unwrap().iter().map(String::from).collect())
+            .collect()
+    };
+    let (ours, theirs) = (rows(&csv), rows(&run_dir.join("runs.csv")));
+    let n = ours[0].len();
+    assert_eq!(ours[0][..2], theirs[0][..2]);
+    assert_eq!(ours[0][3..n - 1], theirs[0][3..n - 1]);
+    let header = csv::Reader::from_path(run_dir.join("runs.csv"))
+        .unwrap()
+        .headers()
+        .unwrap()
+        .clone();
+    let column = header.iter().position(|h| h == "precision").unwrap();
+    let precision: f64 = theirs[0][column].parse().unwrap();
+    assert!(
+        precision < 1.0,
+        "the registration error costs the truth: {precision}"
+    );
+    let refused = sigmap(&[
+        "map",
+        "--scans",
+        "no.graph",
+        "--profile",
+        "experiments/profiles/collaborative_poses.toml",
+        "--method",
+        "registered_truth",
+        "--out",
+        &path(&d.join("x.bt")),
+    ]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("scoring reference"), "{stderr}");
+}

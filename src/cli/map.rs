@@ -4,8 +4,9 @@
 
 use super::{progress_bar, resolution_arg, with_threads, MapArgs};
 use crate::error::{Error, Result};
-use crate::experiment::model::{build_map, MapperView};
+use crate::experiment::model::{build_map, MapperView, Method, REGISTERED_TRUTH_FROM_SCANS};
 use crate::experiment::recorded::{map_recorded, read_scan_graph, RecordedOptions};
+use crate::experiment::runner::registered_truth;
 use crate::experiment::{self, write_rays, Experiment};
 use crate::mapping::octomap_io::{check_octree_path, write_octree};
 use crate::mapping::octree::Octree;
@@ -46,15 +47,14 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         write_rays(path, &view, &run.scans)?;
     }
     let start = Instant::now();
-    let tree = with_threads(args.run.threads, || {
-        build_map(
-            &view,
-            &run.scans,
-            args.method,
-            resolution,
-            &crate::geometry::Vector3::zeros(),
-        )
-    })??;
+    let origin = crate::geometry::Vector3::zeros();
+    let tree = if args.method == Method::RegisteredTruth {
+        registered_truth(&experiment, &run.truth, resolution, &origin)
+    } else {
+        with_threads(args.run.threads, || {
+            build_map(&view, &run.scans, args.method, resolution, &origin)
+        })??
+    };
     let seconds = start.elapsed().as_secs_f64();
     write_octree(&out, &tree, experiment.map.clamp())?;
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
@@ -77,6 +77,9 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
         ));
     };
     check_octree_path(out)?;
+    if args.method == Method::RegisteredTruth {
+        return Err(Error::Usage(REGISTERED_TRUTH_FROM_SCANS.into()));
+    }
     if args.run.seed.is_some() {
         return Err(Error::Usage(
             "--seed has no meaning with --scans: recorded scans are not simulated".into(),
@@ -128,9 +131,18 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
 /// Prints what was built.
 fn report(args: &MapArgs, resolution: f64, tree: &Octree, beams: usize, seconds: f64, out: &Path) {
     let stats = tree.stats();
+    let rate = if args.method == Method::RegisteredTruth {
+        // Voxelised from the truth, not built from the beams.
+        format!("voxelised in {seconds:.3} s")
+    } else {
+        format!(
+            "{beams} beams in {seconds:.3} s ({:.3} M beams/s)",
+            beams as f64 / seconds / 1e6
+        )
+    };
     eprintln!(
         "{} map at {} m: {} nodes ({} leaves), {} bytes ({:.1} per leaf; OctoMap's layout: {:.1}); \
-         {beams} beams in {seconds:.3} s ({:.3} M beams/s); wrote {}",
+         {rate}; wrote {}",
         args.method,
         resolution,
         stats.nodes,
@@ -138,7 +150,6 @@ fn report(args: &MapArgs, resolution: f64, tree: &Octree, beams: usize, seconds:
         stats.bytes,
         stats.bytes as f64 / stats.leaves.max(1) as f64,
         (16 * stats.nodes + 64 * stats.inner) as f64 / stats.leaves.max(1) as f64,
-        beams as f64 / seconds / 1e6,
         out.display()
     );
 }

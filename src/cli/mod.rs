@@ -167,7 +167,9 @@ pub(crate) struct MapArgs {
     /// The experiment file (TOML); or give recorded scans with --scans.
     #[arg(required_unless_present = "scans")]
     experiment: Option<PathBuf>,
-    /// blind, jacobian, unscented, correlated or ray_update.
+    /// blind, jacobian, unscented, correlated or ray_update; or
+    /// registered_truth (the truth as the run's scene registration places
+    /// it; not for --scans).
     #[arg(long, default_value = "unscented")]
     method: crate::experiment::model::Method,
     /// Finest voxel edge (m) [default: the experiment's `resolution`; with

@@ -13,7 +13,7 @@
 //! exact box–solid test decides.
 
 use crate::error::{Error, Result};
-use crate::geometry::{Point3, Vector3};
+use crate::geometry::{Isometry3, Point3, Vector3};
 use crate::mapping::octree::{check_cells, check_span, Clamp, Key, DEPTH};
 use crate::mapping::Octree;
 use crate::sim::scene::{Bounds, Scene};
@@ -38,8 +38,21 @@ pub fn voxelise(scene: &Scene, resolution: f64) -> Octree {
 /// The true occupancy in the map frame `map = scene + offset` (the grid's
 /// sub-voxel offset of `Experiment::map_offset`).
 pub fn voxelise_at(scene: &Scene, resolution: f64, offset: &Vector3) -> Octree {
+    voxelise_in(
+        scene,
+        resolution,
+        &Isometry3::translation(offset.x, offset.y, offset.z),
+    )
+}
+
+/// The true occupancy in the map frame `map = map_from_scene · scene`, any
+/// rigid placement: the scene as a registration error moves it, for example
+/// (`runner::registered_truth`). The same rule cell by cell, each cell's box
+/// taken into the scene frame.
+pub fn voxelise_in(scene: &Scene, resolution: f64, map_from_scene: &Isometry3) -> Octree {
     let mut tree = Octree::new(resolution);
-    recurse(scene, &mut tree, Key([0, 0, 0]), 0, offset);
+    let scene_from_map = map_from_scene.inverse();
+    recurse(scene, &mut tree, Key([0, 0, 0]), 0, &scene_from_map);
     tree
 }
 
@@ -57,39 +70,54 @@ pub fn cell_counts(tree: &Octree) -> (u64, u64) {
     (occupied, free)
 }
 
-/// The cell's box in scene coordinates.
-fn cell_bounds(tree: &Octree, key: &Key, depth: u8, offset: &Vector3) -> Bounds {
-    let c = tree.center(key, depth) - offset;
-    let h = tree.node_size(depth) / 2.0;
-    Bounds {
-        min: Point3::new(c.x - h, c.y - h, c.z - h),
-        max: Point3::new(c.x + h, c.y + h, c.z + h),
+/// A cell in the scene frame: its centre, half-edge, and the axis-aligned
+/// box that holds it (the cell itself when the placement has no rotation).
+struct SceneCell {
+    centre: Point3,
+    half: f64,
+    bounds: Bounds,
+}
+
+fn scene_cell(tree: &Octree, key: &Key, depth: u8, scene_from_map: &Isometry3) -> SceneCell {
+    let centre = scene_from_map * tree.center(key, depth);
+    let half = tree.node_size(depth) / 2.0;
+    // |R| times the half-extents: the reach of the box along each scene axis.
+    let rotation = scene_from_map.rotation.to_rotation_matrix();
+    let reach = rotation.matrix().abs() * Vector3::repeat(half);
+    SceneCell {
+        centre,
+        half,
+        bounds: Bounds {
+            min: centre - reach,
+            max: centre + reach,
+        },
     }
 }
 
-fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8, offset: &Vector3) {
-    let cell = cell_bounds(tree, &key, depth, offset);
+fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8, scene_from_map: &Isometry3) {
+    let cell = scene_cell(tree, &key, depth, scene_from_map);
     let ws = &scene.workspace;
-    if !cell.intersects(ws) {
+    if !cell.bounds.intersects(ws) {
         return;
     }
     if depth == DEPTH {
-        let centre = tree.center(&key, depth) - offset;
-        if !ws.contains(&centre) {
+        if !ws.contains(&cell.centre) {
             return;
         }
-        let touch = Vector3::repeat(TOUCH);
-        let (min, max) = (cell.min + touch, cell.max - touch);
+        let scene_from_cell =
+            Isometry3::from_parts(cell.centre.coords.into(), scene_from_map.rotation);
+        let half = Vector3::repeat(cell.half - TOUCH);
         let occupied = scene
-            .objects_near(&cell.min, &cell.max)
+            .objects_near(&cell.bounds.min, &cell.bounds.max)
             .into_iter()
-            .any(|o| scene.box_meets_object(o, &min, &max));
+            .any(|o| scene.oriented_box_meets_object(o, &scene_from_cell, &half));
         let clamp = Clamp::OCTOMAP;
         tree.update(&key, if occupied { clamp.max } else { clamp.min }, clamp);
         return;
     }
-    let inside = ws.contains(&cell.min) && ws.contains(&cell.max);
-    if inside && scene.objects_near(&cell.min, &cell.max).is_empty() {
+    let (min, max) = (cell.bounds.min, cell.bounds.max);
+    let inside = ws.contains(&min) && ws.contains(&max);
+    if inside && scene.objects_near(&min, &max).is_empty() {
         tree.update_region(&key, depth, Clamp::OCTOMAP.min, Clamp::OCTOMAP);
         return;
     }
@@ -99,7 +127,7 @@ fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8, offset: &Vecto
         for (axis, kk) in k.0.iter_mut().enumerate() {
             *kk |= ((child >> axis) & 1) << bit;
         }
-        recurse(scene, tree, k, depth + 1, offset);
+        recurse(scene, tree, k, depth + 1, scene_from_map);
     }
 }
 
@@ -138,6 +166,47 @@ mod tests {
         assert_eq!(at(&truth, 0.025), Some(true));
         assert_eq!(at(&moved, 0.025), Some(false));
         assert_eq!(at(&moved, 0.225), Some(true));
+    }
+
+    #[test]
+    fn a_placed_scene_is_the_scene_with_its_solids_moved() {
+        // Voxelising scene A placed by a rotation about z and a translation
+        // equals voxelising scene B, whose solids were moved the same way.
+        let (theta, t) = (0.3f64, Vector3::new(0.013, -0.027, 0.0071));
+        let (c, s) = (theta.cos(), theta.sin());
+        let solid = |x: f64, y: f64, z: f64, yaw: f64| {
+            format!(
+                "[[object]]\nshape = \"box\"\nsize = [0.17, 0.09, 0.13]\n\
+                 xyz = [{x}, {y}, {z}]\nrpy = [0.0, 0.0, {yaw}]\n"
+            )
+        };
+        let (p, q) = ([0.1, 0.05, 0.02], [-0.12, -0.1, 0.07]);
+        let moved = |v: [f64; 3]| {
+            [
+                c * v[0] - s * v[1] + t.x,
+                s * v[0] + c * v[1] + t.y,
+                v[2] + t.z,
+            ]
+        };
+        let (_a, a) = scene(&(solid(p[0], p[1], p[2], 0.0) + &solid(q[0], q[1], q[2], 0.0)));
+        let (pm, qm) = (moved(p), moved(q));
+        let (_b, b) =
+            scene(&(solid(pm[0], pm[1], pm[2], theta) + &solid(qm[0], qm[1], qm[2], theta)));
+        let placement = Isometry3::new(t, Vector3::z() * theta);
+        let (placed, direct) = (voxelise_in(&a, 0.02, &placement), voxelise(&b, 0.02));
+        let mut occupied = 0;
+        for i in -15..15 {
+            for j in -15..15 {
+                for k in -10..12 {
+                    let x =
+                        Point3::new(i as f64, j as f64, k as f64) * 0.02 + Vector3::repeat(0.01);
+                    let call = |tree: &Octree| tree.value_at(&x).map(is_occupied);
+                    assert_eq!(call(&placed), call(&direct), "{x:?}");
+                    occupied += usize::from(call(&direct) == Some(true));
+                }
+            }
+        }
+        assert!(occupied > 300, "{occupied}");
     }
 
     #[test]

@@ -42,16 +42,22 @@ pub enum Method {
     Correlated,
     /// OctoMap's ray update (hit/miss log-odds), the baseline most users run.
     RayUpdate,
+    /// Not a mapper: the true occupancy as the run's drawn scene registration
+    /// (T_sw) places it, what a perfect sensor on a perfect arm would map.
+    /// A scoring reference for `sigmap run` (`runner::registered_truth`): the
+    /// ceiling for any map that cannot see the registration error.
+    RegisteredTruth,
 }
 
 impl Method {
     /// Every method.
-    pub const ALL: [Method; 5] = [
+    pub const ALL: [Method; 6] = [
         Method::Blind,
         Method::Jacobian,
         Method::Unscented,
         Method::Correlated,
         Method::RayUpdate,
+        Method::RegisteredTruth,
     ];
 
     /// Its name in files and on the command line.
@@ -62,6 +68,7 @@ impl Method {
             Method::Unscented => "unscented",
             Method::Correlated => "correlated",
             Method::RayUpdate => "ray_update",
+            Method::RegisteredTruth => "registered_truth",
         }
     }
 }
@@ -80,11 +87,18 @@ impl FromStr for Method {
             .find(|m| m.as_str() == s)
             .ok_or_else(|| {
                 format!(
-                    "unknown method '{s}' (use blind, jacobian, unscented, correlated or ray_update)"
+                    "unknown method '{s}' (use blind, jacobian, unscented, correlated, ray_update \
+                     or registered_truth)"
                 )
             })
     }
 }
+
+/// Why scans cannot give `registered_truth`.
+pub const REGISTERED_TRUTH_FROM_SCANS: &str =
+    "registered_truth is a scoring reference built from a simulated run's truth, not from scans: \
+     give an experiment (`sigmap map EXPERIMENT --method registered_truth`, or list it in the \
+     experiment's `methods` for `sigmap run`)";
 
 /// What a mapper may know of an experiment: the scanner's geometry, the
 /// range-error model it is calibrated with, and the map settings. Neither
@@ -120,7 +134,7 @@ pub fn propagator(method: Method, chain: &UncertainChain) -> Option<Box<dyn Prop
         Method::Unscented | Method::Correlated => {
             Some(Box::new(UnscentedPropagator::new(chain, SigmaSet::Paper)))
         }
-        Method::RayUpdate => None,
+        Method::RayUpdate | Method::RegisteredTruth => None,
     }
 }
 
@@ -250,6 +264,9 @@ pub fn build_map_measured(
     resolution: f64,
     offset: &Vector3,
 ) -> Result<Octree> {
+    if method == Method::RegisteredTruth {
+        return Err(Error::Usage(REGISTERED_TRUTH_FROM_SCANS.into()));
+    }
     let mut tree = Octree::new(resolution);
     let max_range = view.scanner.max_range;
     if method == Method::RayUpdate {

@@ -18,7 +18,9 @@
 //! median angular spacing of nearest neighbours, which is the raster step
 //! of a regular scanner; `--angular-step` overrides it.
 
-use super::model::{propagator, split_chain, take_shared_motion, Method};
+use super::model::{
+    propagator, split_chain, take_shared_motion, Method, REGISTERED_TRUTH_FROM_SCANS,
+};
 use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Pose, Vector3};
 use crate::mapping::merge::merge;
@@ -110,6 +112,9 @@ pub fn map_recorded(
     options: &RecordedOptions,
     done: impl Fn(usize),
 ) -> Result<Octree> {
+    if options.method == Method::RegisteredTruth {
+        return Err(Error::Usage(REGISTERED_TRUTH_FROM_SCANS.into()));
+    }
     let chains = nodes
         .iter()
         .map(|node| node_chain(node, profile))

@@ -5,12 +5,12 @@ use super::metrics::{Measured, METRICS};
 use super::model::{
     build_map_measured, measured_points, propagator, scan_chain, MapperView, Method,
 };
-use super::{simulate, Experiment};
+use super::{simulate, Experiment, RunTruth};
 use crate::error::{Error, Result};
-use crate::eval::ground_truth::voxelise_at;
+use crate::eval::ground_truth::{voxelise_at, voxelise_in};
 use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
-use crate::geometry::{Matrix3, Vector3};
+use crate::geometry::{Isometry3, Matrix3, Vector3};
 use crate::mapping::Octree;
 use crate::sim::scan::ScanTruth;
 use crate::uncertainty::consistency::{nees, student_t_quantile, ConsistencyReport};
@@ -48,6 +48,24 @@ pub fn ground_truth(experiment: &Experiment, seed: u64) -> Octree {
     )
 }
 
+/// The truth as the run's scene registration places it: the scene moved by
+/// the drawn registration error, `map = offset + T̂_sw⁻¹ T_sw · scene`
+/// (T̂_sw nominal, T_sw the run's draw). What a perfect sensor on a perfect
+/// arm with an exact hand-eye calibration would map: the reference method
+/// `registered_truth`, the ceiling for a map that cannot see the
+/// registration error (docs/math.md §7.5). The truth itself without it.
+pub fn registered_truth(
+    experiment: &Experiment,
+    truth: &RunTruth,
+    resolution: f64,
+    offset: &Vector3,
+) -> Octree {
+    let map_from_scene = Isometry3::translation(offset.x, offset.y, offset.z)
+        * experiment.world_from_scene.to_isometry().inverse()
+        * truth.world_from_scene;
+    voxelise_in(&experiment.scene, resolution, &map_from_scene)
+}
+
 /// The cells some true beam of the run could have seen (the scoring mask).
 fn observable(experiment: &Experiment, truths: &[ScanTruth], offset: &Vector3) -> FxHashSet<u64> {
     observable_cells(
@@ -81,14 +99,18 @@ pub fn run_seed(
     let (mut rows, mut timings, mut maps) = (Vec::new(), Vec::new(), Vec::new());
     for &method in &experiment.methods {
         let start = Instant::now();
-        let map = build_map_measured(
-            &view,
-            &run.scans,
-            Some(&measured),
-            method,
-            experiment.resolution,
-            &offset,
-        )?;
+        let map = if method == Method::RegisteredTruth {
+            registered_truth(experiment, &run.truth, experiment.resolution, &offset)
+        } else {
+            build_map_measured(
+                &view,
+                &run.scans,
+                Some(&measured),
+                method,
+                experiment.resolution,
+                &offset,
+            )?
+        };
         let model_s = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let s: MapScores = score_map(&map, truth, &observable);
@@ -309,6 +331,96 @@ pub fn write_rows<T: Serialize>(path: &std::path::Path, rows: &[T]) -> Result<()
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::eval::ground_truth::TOUCH;
+    use crate::geometry::Point3;
+    use crate::mapping::octomap_io::is_occupied;
+    use crate::mapping::octree::DEPTH;
+    use std::path::Path;
+
+    /// The quickstart with only a scene-registration error (T_sw), large:
+    /// arm and hand-eye exact.
+    fn registration_only(dir: &Path) -> Experiment {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let profile = dir.join("registration.toml");
+        std::fs::write(
+            &profile,
+            "name = \"registration\"\n[range]\nsigma0 = 0.001\nk = 0.0\nangular_sigma = 0.0\n\
+             dropout = 0.0\n[world_from_scene]\nsigma = [0.004, 0.004, 0.004, 0.02, 0.02, 0.02]\n",
+        )
+        .unwrap();
+        let text = std::fs::read_to_string(root.join("experiments/quickstart.toml"))
+            .unwrap()
+            .replace("\"../", &format!("\"{}/", root.display()))
+            .replace(
+                "profiles/collaborative.toml",
+                &profile.display().to_string(),
+            )
+            .replace("resolution = 0.01", "resolution = 0.01\ngrid_offset = true");
+        let path = dir.join("experiment.toml");
+        std::fs::write(&path, text).unwrap();
+        Experiment::load(&path).unwrap()
+    }
+
+    #[test]
+    fn the_registered_truth_holds_the_surface_where_the_nominal_chain_puts_it() {
+        // With only T_sw wrong, a true hit seen through the nominal chain lies
+        // at T̂_sw⁻¹ T_sw x: on the registered truth's surface, off the truth's.
+        let dir = tempfile::tempdir().unwrap();
+        let experiment = registration_only(dir.path());
+        let seed = 3;
+        let run = simulate(&experiment, seed, |_| {}).unwrap();
+        let offset = experiment.map_offset(seed);
+        let registered = registered_truth(&experiment, &run.truth, 0.01, &offset);
+        let truth = ground_truth(&experiment, seed);
+        let (mut hits, mut in_registered, mut in_truth) = (0, 0, 0);
+        for (scan, seen) in run.scans.iter().zip(&run.truth.scans) {
+            let map_from_camera = scan.chain.scene_from_camera();
+            for (beam, d) in seen.beams.iter().zip(&experiment.scanner.directions) {
+                if !beam.range.is_finite() {
+                    continue;
+                }
+                let point = map_from_camera * Point3::from(d * beam.range) + offset;
+                // A surface point is inside its cell's solid unless it lies
+                // on a cell face (within TOUCH): those are left out.
+                let cell = (point.coords / 0.01).map(|x| x - x.floor());
+                if cell
+                    .iter()
+                    .any(|&f| f * 0.01 < 2.0 * TOUCH || (1.0 - f) * 0.01 < 2.0 * TOUCH)
+                {
+                    continue;
+                }
+                let value = |tree: &Octree| tree.key(&point).and_then(|k| tree.query(&k, DEPTH));
+                // Cells whose centre the error moves out of the workspace
+                // have no truth.
+                let Some(registered_value) = value(&registered) else {
+                    continue;
+                };
+                hits += 1;
+                in_registered += usize::from(is_occupied(registered_value));
+                in_truth += usize::from(value(&truth).is_some_and(is_occupied));
+            }
+        }
+        assert!(hits > 10_000, "{hits} hits");
+        assert_eq!(in_registered, hits, "every hit on the registered surface");
+        assert!(
+            (in_truth as f64) < 0.8 * hits as f64,
+            "the error moves hits off the truth: {in_truth} of {hits}"
+        );
+    }
+
+    #[test]
+    fn without_a_registration_error_the_registered_truth_is_the_truth() {
+        let mut experiment = Experiment::load(Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/experiments/quickstart.toml"
+        )))
+        .unwrap();
+        experiment.profile.scale_pose_errors(0.0);
+        let run = simulate(&experiment, 1, |_| {}).unwrap();
+        let offset = experiment.map_offset(1);
+        let registered = registered_truth(&experiment, &run.truth, 0.01, &offset);
+        assert_eq!(registered.leaves(), ground_truth(&experiment, 1).leaves());
+    }
 
     #[test]
     fn t_quantiles() {

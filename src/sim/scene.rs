@@ -384,18 +384,39 @@ impl Scene {
     /// Whether the closed box `[min, max]` meets object `object`'s solid
     /// (its surface or its interior): the ground-truth occupancy rule.
     pub fn box_meets_object(&self, object: usize, min: &Point3, max: &Point3) -> bool {
-        let o = &self.objects[object];
         let centre = (min.coords + max.coords) / 2.0;
+        let half = (max.coords - min.coords) / 2.0;
+        self.oriented_box_meets_object(
+            object,
+            &Isometry3::translation(centre.x, centre.y, centre.z),
+            &half,
+        )
+    }
+
+    /// Whether the closed box of half-extents `half`, centred on the origin
+    /// of the frame `scene_from_box`, meets object `object`'s solid: the rule
+    /// of [`Scene::box_meets_object`] for a box at any orientation.
+    pub fn oriented_box_meets_object(
+        &self,
+        object: usize,
+        scene_from_box: &Isometry3,
+        half: &Vector3,
+    ) -> bool {
+        let o = &self.objects[object];
+        let centre = scene_from_box.translation.vector;
         if o.shape.contains_point(&o.pose, to_parry(&centre)) {
             return true;
         }
-        let half = (max.coords - min.coords) / 2.0;
-        let cell = parry3d_f64::shape::Cuboid::new(to_parry(&half));
-        let cell_pose = ParryPose::from_translation(to_parry(&centre));
-        parry3d_f64::query::intersection_test(&cell_pose, &cell, &o.pose, o.shape.as_ref())
-            .map(|r| r.intersecting)
-            // Unsupported pairs do not occur for our shapes; count them as touching.
-            .unwrap_or(true)
+        let cell = parry3d_f64::shape::Cuboid::new(to_parry(half));
+        parry3d_f64::query::intersection_test(
+            &to_parry_pose(scene_from_box),
+            &cell,
+            &o.pose,
+            o.shape.as_ref(),
+        )
+        .map(|r| r.intersecting)
+        // Unsupported pairs do not occur for our shapes; count them as touching.
+        .unwrap_or(true)
     }
 }
 
