@@ -6,6 +6,7 @@ use common::{portable_quickstart, sigmap, sigmap_ok};
 use sigmap::geometry::Point3;
 use sigmap::mapping::octomap_io::read_octree;
 use sigmap::mapping::Clamp;
+use std::path::{Path, PathBuf};
 
 #[test]
 fn maps_are_written_and_carry_free_space_and_surfaces() {
@@ -171,66 +172,76 @@ fn ground_truth_files() {
 /// `sigmap score` on sigmap's own ray-update map of the quickstart's first
 /// run gives that run's runs.csv row (same truth, mask and metrics); a map
 /// at another resolution is refused.
+/// A one-seed quickstart with one method in `dir`: `sigmap map` its run,
+/// `sigmap run` it and `sigmap score` the map. Returns the experiment file,
+/// the score's row and the run's row (as text, by column name).
+fn map_run_and_score(dir: &Path, method: &str, seed: u64) -> (PathBuf, Row, Row) {
+    let text = portable_quickstart()
+        .replace("seeds = [1, 2, 3]", &format!("seeds = [{seed}]"))
+        .replace(
+            "methods = [\"blind\", \"unscented\", \"ray_update\"]",
+            &format!("methods = [\"{method}\"]"),
+        );
+    let experiment = dir.join("quickstart.toml");
+    std::fs::write(&experiment, text).unwrap();
+    let (map, run_dir, csv) = (dir.join("map.ot"), dir.join("run"), dir.join("scores.csv"));
+    let (e, seed) = (path(&experiment), seed.to_string());
+    let map_args = ["map", &e, "--method", method, "--seed", &seed, "-q"];
+    sigmap_ok(&[&map_args[..], &["--out", &path(&map)]].concat());
+    sigmap_ok(&["run", &e, "-q", "--out", &path(&run_dir)]);
+    let score_args = ["score", &path(&map), &e, "--seed", &seed, "-q"];
+    sigmap_ok(&[&score_args[..], &["--csv", &path(&csv)]].concat());
+    let row = |file: &Path| {
+        let mut reader = csv::Reader::from_path(file).unwrap();
+        let header = reader.headers().unwrap().clone();
+        let rows: Vec<_> = reader.records().map(|r| r.unwrap()).collect();
+        assert_eq!(rows.len(), 1, "{}", file.display());
+        header
+            .iter()
+            .map(String::from)
+            .zip(rows[0].iter().map(String::from))
+            .collect()
+    };
+    (experiment, row(&csv), row(&run_dir.join("runs.csv")))
+}
+
+/// A runs.csv row: (column, value) in file order.
+type Row = Vec<(String, String)>;
+
+fn path(p: &Path) -> String {
+    p.to_str().unwrap().to_string()
+}
+
+/// Every column but the method name and the tree's memory (bytes) agrees.
+fn assert_same_scores(ours: &Row, theirs: &Row) {
+    assert_eq!(ours.len(), theirs.len());
+    for (a, b) in ours.iter().zip(theirs) {
+        if a.0 != "method" && a.0 != "bytes" {
+            assert_eq!(a, b);
+        }
+    }
+}
+
 #[test]
 fn score_gives_a_maps_run_row() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let map = d.join("ray_update.ot");
-    let run_dir = d.join("run");
-    let text = portable_quickstart()
-        .replace("seeds = [1, 2, 3]", "seeds = [1]")
-        .replace(
-            "methods = [\"blind\", \"unscented\", \"ray_update\"]",
-            "methods = [\"ray_update\"]",
-        );
-    let experiment = d.join("quickstart.toml");
-    std::fs::write(&experiment, text).unwrap();
-    let e = experiment.to_str().unwrap();
-    sigmap_ok(&[
-        "map",
-        e,
-        "--method",
-        "ray_update",
-        "-q",
-        "--out",
-        map.to_str().unwrap(),
-    ]);
-    sigmap_ok(&["run", e, "-q", "--out", run_dir.to_str().unwrap()]);
-    let csv = d.join("scores.csv");
-    sigmap_ok(&[
-        "score",
-        map.to_str().unwrap(),
-        e,
-        "-q",
-        "--csv",
-        csv.to_str().unwrap(),
-    ]);
+    let (experiment, ours, theirs) = map_run_and_score(d, "ray_update", 1);
+    assert_same_scores(&ours, &theirs);
     let coarse = d.join("coarse.ot");
+    let e = path(&experiment);
     sigmap_ok(&[
         "map",
-        e,
+        &e,
         "--method",
         "ray_update",
         "--resolution",
         "0.02",
         "-q",
         "--out",
-        coarse.to_str().unwrap(),
+        &path(&coarse),
     ]);
-    let refused = sigmap(&["score", coarse.to_str().unwrap(), e]);
-    let rows = |path: &std::path::Path| -> Vec<Vec<String>> {
-        csv::Reader::from_path(path)
-            .unwrap()
-            .records()
-            .map(|r| r.unwrap().iter().map(String::from).collect())
-            .collect()
-    };
-    let (ours, theirs) = (rows(&csv), rows(&run_dir.join("runs.csv")));
-    assert_eq!(ours.len(), 1);
-    // Every column but the method name and the tree's memory (bytes).
-    let n = ours[0].len();
-    assert_eq!(ours[0][..2], theirs[0][..2]);
-    assert_eq!(ours[0][3..n - 1], theirs[0][3..n - 1]);
+    let refused = sigmap(&["score", &path(&coarse), &e]);
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert_eq!(refused.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("resolution is 0.02 m"), "{stderr}");
@@ -241,58 +252,15 @@ fn the_registered_truth_is_mapped_and_scored_as_run_scores_it() {
     // `sigmap map --method registered_truth` writes the reference that `run`
     // scores; recorded scans have no truth to give it.
     let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let text = portable_quickstart()
-        .replace("seeds = [1, 2, 3]", "seeds = [2]")
-        .replace(
-            "methods = [\"blind\", \"unscented\", \"ray_update\"]",
-            "methods = [\"registered_truth\"]",
-        );
-    let experiment = d.join("quickstart.toml");
-    std::fs::write(&experiment, text).unwrap();
-    let e = experiment.to_str().unwrap();
-    let (map, run_dir, csv) = (d.join("truth.ot"), d.join("run"), d.join("scores.csv"));
-    let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
-    sigmap_ok(&[
-        "map",
-        e,
-        "--method",
-        "registered_truth",
-        "--seed",
-        "2",
-        "-q",
-        "--out",
-        &path(&map),
-    ]);
-    sigmap_ok(&["run", e, "-q", "--out", &path(&run_dir)]);
-    sigmap_ok(&[
-        "score",
-        &path(&map),
-        e,
-        "--seed",
-        "2",
-        "-q",
-        "--csv",
-        &path(&csv),
-    ]);
-    let rows = |path: &std::path::Path| -> Vec<Vec<String>> {
-        csv::Reader::from_path(path)
-            .unwrap()
-            .records()
-            .map(|r| r.unwrap().iter().map(String::from).collect())
-            .collect()
-    };
-    let (ours, theirs) = (rows(&csv), rows(&run_dir.join("runs.csv")));
-    let n = ours[0].len();
-    assert_eq!(ours[0][..2], theirs[0][..2]);
-    assert_eq!(ours[0][3..n - 1], theirs[0][3..n - 1]);
-    let header = csv::Reader::from_path(run_dir.join("runs.csv"))
+    let (_, ours, theirs) = map_run_and_score(dir.path(), "registered_truth", 2);
+    assert_same_scores(&ours, &theirs);
+    let precision: f64 = theirs
+        .iter()
+        .find(|(c, _)| c == "precision")
         .unwrap()
-        .headers()
-        .unwrap()
-        .clone();
-    let column = header.iter().position(|h| h == "precision").unwrap();
-    let precision: f64 = theirs[0][column].parse().unwrap();
+        .1
+        .parse()
+        .unwrap();
     assert!(
         precision < 1.0,
         "the registration error costs the truth: {precision}"
@@ -306,7 +274,7 @@ fn the_registered_truth_is_mapped_and_scored_as_run_scores_it() {
         "--method",
         "registered_truth",
         "--out",
-        &path(&d.join("x.bt")),
+        &path(&dir.path().join("x.bt")),
     ]);
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert_eq!(refused.status.code(), Some(2), "{stderr}");
