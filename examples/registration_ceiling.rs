@@ -13,10 +13,8 @@
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sigmap::eval::ground_truth::voxelise_in;
-use sigmap::eval::observable::observable_cells;
-use sigmap::experiment::runner::ground_truth;
+use sigmap::experiment::runner::{ground_truth, observable, registered_placement};
 use sigmap::experiment::{simulate, Experiment, SweepValue};
-use sigmap::geometry::Isometry3;
 use sigmap::mapping::octree::DEPTH;
 use sigmap::mapping::Key;
 use sigmap::sim::truth::draw_pose;
@@ -74,17 +72,9 @@ fn ceiling(experiment: &Experiment, seeds: u64, draws: usize) -> sigmap::Result<
     for seed in 1..=seeds {
         let run = simulate(experiment, seed, |_| {})?;
         let offset = experiment.map_offset(seed);
-        let observable = observable_cells(
-            &experiment.scanner.directions,
-            experiment.scanner.max_range,
-            &run.truth.scans,
-            experiment.resolution,
-            &offset,
-        );
+        let observable = observable(experiment, &run.truth.scans, &offset);
         let truth = ground_truth(experiment, seed);
-        let registered = Isometry3::translation(offset.x, offset.y, offset.z)
-            * nominal.inverse()
-            * run.truth.world_from_scene;
+        let registered = registered_placement(experiment, &run.truth, &offset);
         // The blur: further registration errors on top of the run's own.
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let blurred: Vec<_> = (0..draws)

@@ -13,7 +13,7 @@
 //! exact box–solid test decides.
 
 use crate::error::{Error, Result};
-use crate::geometry::{Isometry3, Point3, Vector3};
+use crate::geometry::{Isometry3, Matrix3, Point3, Vector3};
 use crate::mapping::octree::{check_cells, check_span, Clamp, Key, DEPTH};
 use crate::mapping::Octree;
 use crate::sim::scene::{Bounds, Scene};
@@ -51,8 +51,8 @@ pub fn voxelise_at(scene: &Scene, resolution: f64, offset: &Vector3) -> Octree {
 /// taken into the scene frame.
 pub fn voxelise_in(scene: &Scene, resolution: f64, map_from_scene: &Isometry3) -> Octree {
     let mut tree = Octree::new(resolution);
-    let scene_from_map = map_from_scene.inverse();
-    recurse(scene, &mut tree, Key([0, 0, 0]), 0, &scene_from_map);
+    let placement = Placement::new(map_from_scene);
+    recurse(scene, &mut tree, Key([0, 0, 0]), 0, &placement);
     tree
 }
 
@@ -70,6 +70,40 @@ pub fn cell_counts(tree: &Octree) -> (u64, u64) {
     (occupied, free)
 }
 
+/// Where the map's cells lie in the scene, computed once per voxelisation:
+/// `scene_from_map`, and `|R|` of its rotation, the reach of a cell along
+/// each scene axis per unit of half-edge.
+struct Placement {
+    scene_from_map: Isometry3,
+    reach: Matrix3,
+}
+
+impl Placement {
+    fn new(map_from_scene: &Isometry3) -> Self {
+        let scene_from_map = map_from_scene.inverse();
+        let reach = scene_from_map.rotation.to_rotation_matrix().matrix().abs();
+        Self {
+            scene_from_map,
+            reach,
+        }
+    }
+
+    /// The cell in the scene frame.
+    fn cell(&self, tree: &Octree, key: &Key, depth: u8) -> SceneCell {
+        let centre = self.scene_from_map * tree.center(key, depth);
+        let half = tree.node_size(depth) / 2.0;
+        let reach = self.reach * Vector3::repeat(half);
+        SceneCell {
+            centre,
+            half,
+            bounds: Bounds {
+                min: centre - reach,
+                max: centre + reach,
+            },
+        }
+    }
+}
+
 /// A cell in the scene frame: its centre, half-edge, and the axis-aligned
 /// box that holds it (the cell itself when the placement has no rotation).
 struct SceneCell {
@@ -78,24 +112,8 @@ struct SceneCell {
     bounds: Bounds,
 }
 
-fn scene_cell(tree: &Octree, key: &Key, depth: u8, scene_from_map: &Isometry3) -> SceneCell {
-    let centre = scene_from_map * tree.center(key, depth);
-    let half = tree.node_size(depth) / 2.0;
-    // |R| times the half-extents: the reach of the box along each scene axis.
-    let rotation = scene_from_map.rotation.to_rotation_matrix();
-    let reach = rotation.matrix().abs() * Vector3::repeat(half);
-    SceneCell {
-        centre,
-        half,
-        bounds: Bounds {
-            min: centre - reach,
-            max: centre + reach,
-        },
-    }
-}
-
-fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8, scene_from_map: &Isometry3) {
-    let cell = scene_cell(tree, &key, depth, scene_from_map);
+fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8, placement: &Placement) {
+    let cell = placement.cell(tree, &key, depth);
     let ws = &scene.workspace;
     if !cell.bounds.intersects(ws) {
         return;
@@ -105,12 +123,12 @@ fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8, scene_from_map
             return;
         }
         let scene_from_cell =
-            Isometry3::from_parts(cell.centre.coords.into(), scene_from_map.rotation);
+            Isometry3::from_parts(cell.centre.coords.into(), placement.scene_from_map.rotation);
         let half = Vector3::repeat(cell.half - TOUCH);
         let occupied = scene
             .objects_near(&cell.bounds.min, &cell.bounds.max)
             .into_iter()
-            .any(|o| scene.oriented_box_meets_object(o, &scene_from_cell, &half));
+            .any(|o| scene.box_meets_object(o, &scene_from_cell, &half));
         let clamp = Clamp::OCTOMAP;
         tree.update(&key, if occupied { clamp.max } else { clamp.min }, clamp);
         return;
@@ -127,7 +145,7 @@ fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8, scene_from_map
         for (axis, kk) in k.0.iter_mut().enumerate() {
             *kk |= ((child >> axis) & 1) << bit;
         }
-        recurse(scene, tree, k, depth + 1, scene_from_map);
+        recurse(scene, tree, k, depth + 1, placement);
     }
 }
 

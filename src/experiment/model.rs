@@ -163,15 +163,6 @@ pub fn scan_chain(scan: &Scan) -> UncertainChain {
     )
 }
 
-/// The nominal rotation of a scan's sensor, scene from camera.
-fn camera_rotation(scan: &Scan) -> Matrix3 {
-    scan.chain
-        .scene_from_camera()
-        .rotation
-        .to_rotation_matrix()
-        .into_inner()
-}
-
 /// One beam's propagated end, scene frame, from its measurement `m`,
 /// camera-frame direction `d` and measured point: a hit with its
 /// covariance, a no-return beam as its direction; a too-close or dropped
@@ -321,7 +312,7 @@ pub fn build_map_measured(
         let pooled =
             (measured.is_none() && view.settings.beam_pooling).then(|| measured_points(view, scan));
         let points = measured.map(|m| &m[i]).or(pooled.as_ref());
-        let scene_from_camera = camera_rotation(scan);
+        let scene_from_camera = chain.nominal().rotation.to_rotation_matrix().into_inner();
         let directions = &view.scanner.directions;
         let end = |k: usize| {
             let (m, d) = (&scan.measurements[k], &directions[k]);
@@ -338,11 +329,10 @@ pub fn build_map_measured(
             }
             Some(end)
         };
-        let rotation = chain.nominal().rotation.to_rotation_matrix().into_inner();
         let grid = local_grid_of(
             &(origin.mean + offset),
             &origin.covariance,
-            &rotation,
+            &scene_from_camera,
             raster,
             (scan.measurements.len(), end),
             max_range,

@@ -60,14 +60,28 @@ pub fn registered_truth(
     resolution: f64,
     offset: &Vector3,
 ) -> Octree {
-    let map_from_scene = Isometry3::translation(offset.x, offset.y, offset.z)
-        * experiment.world_from_scene.to_isometry().inverse()
-        * truth.world_from_scene;
+    let map_from_scene = registered_placement(experiment, truth, offset);
     voxelise_in(&experiment.scene, resolution, &map_from_scene)
 }
 
+/// Where the run's registration places the scene in the map frame:
+/// `map_from_scene = offset · T̂_sw⁻¹ T_sw` (see [`registered_truth`]).
+pub fn registered_placement(
+    experiment: &Experiment,
+    truth: &RunTruth,
+    offset: &Vector3,
+) -> Isometry3 {
+    Isometry3::translation(offset.x, offset.y, offset.z)
+        * experiment.world_from_scene.to_isometry().inverse()
+        * truth.world_from_scene
+}
+
 /// The cells some true beam of the run could have seen (the scoring mask).
-fn observable(experiment: &Experiment, truths: &[ScanTruth], offset: &Vector3) -> FxHashSet<u64> {
+pub fn observable(
+    experiment: &Experiment,
+    truths: &[ScanTruth],
+    offset: &Vector3,
+) -> FxHashSet<u64> {
     observable_cells(
         &experiment.scanner.directions,
         experiment.scanner.max_range,

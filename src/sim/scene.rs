@@ -381,22 +381,11 @@ impl Scene {
         found
     }
 
-    /// Whether the closed box `[min, max]` meets object `object`'s solid
-    /// (its surface or its interior): the ground-truth occupancy rule.
-    pub fn box_meets_object(&self, object: usize, min: &Point3, max: &Point3) -> bool {
-        let centre = (min.coords + max.coords) / 2.0;
-        let half = (max.coords - min.coords) / 2.0;
-        self.oriented_box_meets_object(
-            object,
-            &Isometry3::translation(centre.x, centre.y, centre.z),
-            &half,
-        )
-    }
-
     /// Whether the closed box of half-extents `half`, centred on the origin
-    /// of the frame `scene_from_box`, meets object `object`'s solid: the rule
-    /// of [`Scene::box_meets_object`] for a box at any orientation.
-    pub fn oriented_box_meets_object(
+    /// of the frame `scene_from_box` (any orientation), meets object
+    /// `object`'s solid (its surface or its interior): the ground-truth
+    /// occupancy rule.
+    pub fn box_meets_object(
         &self,
         object: usize,
         scene_from_box: &Isometry3,
