@@ -17,6 +17,7 @@
 use super::chord::{Beam, TAIL};
 use crate::geometry::{floor, Matrix3, Vector3};
 use rayon::prelude::*;
+use tangent::TangentBins;
 
 /// A bin axis: `count` bins of `step` from `start`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -157,6 +158,8 @@ pub struct LocalGrid {
     pub max_range: f64,
     /// [`lookup::ANGLE_SLACK`] in bins of each axis.
     slack: [f64; 2],
+    /// The azimuth and elevation bins by the tangent of their angles.
+    tangents: [TangentBins; 2],
     /// Beams of bin `i = a · elevation.count + e`: `beams[offsets[i]..offsets[i+1]]`.
     offsets: Vec<u32>,
     beams: Vec<Beam>,
@@ -215,6 +218,7 @@ impl LocalGrid {
         let grid_from_scene = scene_from_grid.transpose();
         let bins = azimuth.count * elevation.count;
         let slack = lookup::slack(&azimuth, &elevation);
+        let tangents = [TangentBins::new(&azimuth), TangentBins::new(&elevation)];
         // Each beam's (bin, index) and the beam, in input order; `bins` (one
         // past the last bin) marks a beam left out, so the sort puts those last.
         let (mut order, unbinned): (Vec<(u32, u32)>, Vec<Beam>) = (0..count)
@@ -240,13 +244,12 @@ impl LocalGrid {
                 let sigma_origin = (direction.transpose() * origin_covariance * direction)[0]
                     .max(0.0)
                     .sqrt();
-                let (a, e) = lookup::direction_index(
-                    &azimuth,
-                    &elevation,
+                let Some((a, e)) = lookup::direction_bin(
+                    [&azimuth, &elevation],
                     slack,
+                    &tangents,
                     &(grid_from_scene * direction),
-                );
-                let Some((a, e)) = lookup::bin_in(&azimuth, &elevation, a, e) else {
+                ) else {
                     return left_out;
                 };
                 let beam = Beam {
@@ -284,6 +287,7 @@ impl LocalGrid {
             elevation,
             max_range,
             slack,
+            tangents,
             offsets,
             beams,
             inverse,
@@ -448,5 +452,6 @@ impl LocalGrid {
 }
 
 mod lookup;
+mod tangent;
 #[cfg(test)]
 mod tests;

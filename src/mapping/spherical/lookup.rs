@@ -4,14 +4,21 @@
 //! libm angles: `atan2` for azimuth and elevation, and for a ball of radius
 //! `R` at distance `d` the half-widths `β = asin(R/d)` in elevation and
 //! `γ = asin(sin β / cos el)` in azimuth. These calls are most of what a
-//! lookup costs, so a fast path gets the same angles from `atan` of ratios
-//! (`γ = asin(R/ρ)`, ρ the horizontal distance, is the same angle) and keeps
-//! its indices only when each lies more than [`ANGLE_SLACK`] from a bin edge.
-//! The two paths' angles differ by a few 1e-15 rad where the fast path is
-//! used (ratios of at most 0.9, elevations within ±84°), so both floor alike
-//! there; anywhere else the exact path answers. Same bins, bit for bit,
-//! whichever path runs (tested).
+//! lookup costs, so two fast paths answer first, each only where its indices
+//! lie more than [`ANGLE_SLACK`] from a bin edge:
+//! - the tangent path ([`super::tangent`]) compares the angles' tangents
+//!   (ratios of coordinates, and the addition formula for `el ± β`, `az ± γ`)
+//!   with tabulated tangents of the bin edges, and computes no angle;
+//! - the `atan` path gets the angles from `atan` of ratios (`γ = asin(R/ρ)`,
+//!   ρ the horizontal distance, is the same angle), for axes the tangent path
+//!   has no table for and the few lookups it leaves undecided.
+//!
+//! Both paths' angles differ from libm's by at most ~1e-14 rad where they are
+//! used (ratios of at most 0.9, elevations within ±84°, sums away from ±π/2),
+//! so they floor alike; anywhere else the exact path answers. Same bins, bit
+//! for bit, whichever path runs (tested).
 
+use super::tangent::{tan_sum, TangentBins};
 use super::{spherical, Axis, BinBox, LocalGrid};
 use crate::geometry::{floor, Vector3};
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -23,6 +30,19 @@ pub(super) const ANGLE_SLACK: f64 = 1e-11;
 /// Ratios (`R/ρ`, and `ρ/d` from below) beyond which the fast path defers:
 /// near 1 the half-width's error grows without bound.
 const RATIO_LIMIT: f64 = 0.9;
+
+/// `(ρ, d)` of the grid-frame offset `c` (horizontal and full distance) when
+/// the fast paths may answer for the ball of `radius` around it: ahead of
+/// the origin (x > 0), with `R/ρ ≤` [`RATIO_LIMIT`] and `ρ/d` at least
+/// `1 −` [`RATIO_LIMIT`] (`R/d ≤ R/ρ`: one bound covers both half-widths).
+/// NaN defers.
+#[inline]
+fn ball_ratios(c: &Vector3, radius: f64) -> Option<(f64, f64)> {
+    let rho = (c.x * c.x + c.y * c.y).sqrt();
+    let dist = c.norm();
+    (c.x > 0.0 && radius / rho <= RATIO_LIMIT && rho >= (1.0 - RATIO_LIMIT) * dist)
+        .then_some((rho, dist))
+}
 
 impl Axis {
     /// [`Axis::index`] of `v` when `v` lies more than `slack` bins from the
@@ -68,23 +88,41 @@ pub(super) fn slack(azimuth: &Axis, elevation: &Axis) -> [f64; 2] {
     [ANGLE_SLACK / azimuth.step, ANGLE_SLACK / elevation.step]
 }
 
-/// The unclamped (azimuth, elevation) bin indices of grid-frame direction
-/// `v`, as `⌊(atan2 − start)/step⌋` gives them.
+/// The bin `(azimuth, elevation)` of grid-frame direction `v`, if it lies
+/// in the grid: the bin of `⌊(atan2 − start)/step⌋` on each axis.
 #[inline]
-pub(super) fn direction_index(
-    azimuth: &Axis,
-    elevation: &Axis,
+pub(super) fn direction_bin(
+    [azimuth, elevation]: [&Axis; 2],
     slack: [f64; 2],
+    tangents: &[TangentBins; 2],
     v: &Vector3,
-) -> (isize, isize) {
-    direction_index_fast(azimuth, elevation, slack, v).unwrap_or_else(|| {
-        let (_, az, el) = spherical(v);
-        (azimuth.index(az), elevation.index(el))
-    })
+) -> Option<(usize, usize)> {
+    let (a, e) = direction_index_tangent(tangents, v)
+        .or_else(|| direction_index_fast(azimuth, elevation, slack, v))
+        .unwrap_or_else(|| {
+            let (_, az, el) = spherical(v);
+            (azimuth.index(az), elevation.index(el))
+        });
+    bin_in(azimuth, elevation, a, e)
 }
 
-/// [`direction_index`] from `atan` of ratios when both indices are clear of
-/// bin edges; `None` (undecided) otherwise.
+/// The (azimuth, elevation) bin indices of `v` from the tangents `y/x` and
+/// `z/ρ` ([`TangentBins::locate`]: −1 and `count` stand for any index off
+/// the axis); `None` (undecided) near a bin edge.
+#[inline]
+fn direction_index_tangent(tangents: &[TangentBins; 2], v: &Vector3) -> Option<(isize, isize)> {
+    if v.x.is_nan() || v.x <= 0.0 {
+        return None;
+    }
+    let rho = (v.x * v.x + v.y * v.y).sqrt();
+    Some((
+        tangents[0].locate(v.y / v.x)?,
+        tangents[1].locate(v.z / rho)?,
+    ))
+}
+
+/// The unclamped bin indices of `v` from `atan` of ratios when both are
+/// clear of bin edges; `None` (undecided) otherwise.
 #[inline]
 fn direction_index_fast(
     azimuth: &Axis,
@@ -112,7 +150,10 @@ impl LocalGrid {
     #[inline]
     pub fn ball_bins(&self, centre: &Vector3, radius: f64) -> Option<BinBox> {
         let c = self.scene_from_grid.transpose() * (centre - self.origin);
-        match self.ball_bins_fast(&c, radius) {
+        let fast = self
+            .ball_bins_tangent(&c, radius)
+            .or_else(|| self.ball_bins_fast(&c, radius));
+        match fast {
             Some(found) => found,
             None => self.ball_bins_exact(&c, radius),
         }
@@ -133,72 +174,100 @@ impl LocalGrid {
             };
             (el - beta, el + beta, az - gamma, az + gamma)
         };
-        let (e0, e1, e_out) = self
-            .elevation
-            .clip(self.elevation.index(el_lo), self.elevation.index(el_hi))?;
         // The grid's azimuths lie within (−π/2, π/2): no wrap to handle unless
         // the cone covers everything.
-        let (a0, a1, a_out) = self
-            .azimuth
-            .clip(self.azimuth.index(az_lo), self.azimuth.index(az_hi))?;
-        Some(BinBox {
-            azimuth: (a0, a1),
-            elevation: (e0, e1),
-            range: ((dist - radius).max(0.0), dist + radius),
-            outside: a_out || e_out,
-            centre: self.bin_at(self.azimuth.index(az), self.elevation.index(el)),
-        })
+        let (azimuth, elevation) = (&self.azimuth, &self.elevation);
+        self.bin_box(
+            (elevation.index(el_lo), elevation.index(el_hi)),
+            (azimuth.index(az_lo), azimuth.index(az_hi)),
+            (azimuth.index(az), elevation.index(el)),
+            (dist, radius),
+        )
+    }
+
+    /// [`LocalGrid::ball_bins_exact`] from tangents alone, when every index
+    /// it needs is decided ([`TangentBins::locate`]); `None` otherwise.
+    #[inline]
+    pub(super) fn ball_bins_tangent(&self, c: &Vector3, radius: f64) -> Option<Option<BinBox>> {
+        let (rho, dist) = ball_ratios(c, radius)?;
+        let (s, g) = (radius / dist, radius / rho);
+        // tan β and tan γ of β = asin(s), γ = asin(g).
+        let (tb, tg) = (s / (1.0 - s * s).sqrt(), g / (1.0 - g * g).sqrt());
+        let (ta, te) = (c.y / c.x, c.z / rho);
+        let [azimuth, elevation] = &self.tangents;
+        Some(self.bin_box(
+            (
+                elevation.locate(tan_sum(te, -tb))?,
+                elevation.locate(tan_sum(te, tb))?,
+            ),
+            (
+                azimuth.locate(tan_sum(ta, -tg))?,
+                azimuth.locate(tan_sum(ta, tg))?,
+            ),
+            (azimuth.locate(ta)?, elevation.locate(te)?),
+            (dist, radius),
+        ))
     }
 
     /// [`LocalGrid::ball_bins_exact`] from `atan` of ratios, when every index
     /// it needs is clear of bin edges; `None` (undecided) otherwise.
     #[inline]
     pub(super) fn ball_bins_fast(&self, c: &Vector3, radius: f64) -> Option<Option<BinBox>> {
-        let rho = (c.x * c.x + c.y * c.y).sqrt();
-        let dist = c.norm();
-        // R/d ≤ R/ρ: one bound covers both half-widths. NaN defers.
+        let (rho, dist) = ball_ratios(c, radius)?;
         let (s, g) = (radius / dist, radius / rho);
-        if !(c.x > 0.0 && g <= RATIO_LIMIT && rho >= (1.0 - RATIO_LIMIT) * dist) {
-            return None;
-        }
         let (az, el) = ((c.y / c.x).atan(), (c.z / rho).atan());
         // asin(x) = atan(x / √(1 − x²)).
         let beta = (s / (1.0 - s * s).sqrt()).atan();
         let gamma = (g / (1.0 - g * g).sqrt()).atan();
         let [sa, se] = self.slack;
-        let (el_lo, el_hi) = (
-            self.elevation.index_clear(el - beta, se)?,
-            self.elevation.index_clear(el + beta, se)?,
-        );
-        let (az_lo, az_hi) = (
-            self.azimuth.index_clear(az - gamma, sa)?,
-            self.azimuth.index_clear(az + gamma, sa)?,
-        );
-        let centre = (
-            self.azimuth.index_clear(az, sa)?,
-            self.elevation.index_clear(el, se)?,
-        );
-        let Some((e0, e1, e_out)) = self.elevation.clip(el_lo, el_hi) else {
-            return Some(None);
-        };
-        let Some((a0, a1, a_out)) = self.azimuth.clip(az_lo, az_hi) else {
-            return Some(None);
-        };
-        Some(Some(BinBox {
+        Some(self.bin_box(
+            (
+                self.elevation.index_clear(el - beta, se)?,
+                self.elevation.index_clear(el + beta, se)?,
+            ),
+            (
+                self.azimuth.index_clear(az - gamma, sa)?,
+                self.azimuth.index_clear(az + gamma, sa)?,
+            ),
+            (
+                self.azimuth.index_clear(az, sa)?,
+                self.elevation.index_clear(el, se)?,
+            ),
+            (dist, radius),
+        ))
+    }
+
+    /// The ball's bins from the (unclamped) indices of its elevation and
+    /// azimuth extents and of its centre.
+    #[inline]
+    fn bin_box(
+        &self,
+        (el_lo, el_hi): (isize, isize),
+        (az_lo, az_hi): (isize, isize),
+        centre: (isize, isize),
+        (dist, radius): (f64, f64),
+    ) -> Option<BinBox> {
+        let (e0, e1, e_out) = self.elevation.clip(el_lo, el_hi)?;
+        let (a0, a1, a_out) = self.azimuth.clip(az_lo, az_hi)?;
+        Some(BinBox {
             azimuth: (a0, a1),
             elevation: (e0, e1),
             range: ((dist - radius).max(0.0), dist + radius),
             outside: a_out || e_out,
             centre: self.bin_at(centre.0, centre.1),
-        }))
+        })
     }
 
     /// The angular bin holding scene point `p`, if any.
     #[inline]
     pub fn bin_of(&self, p: &Vector3) -> Option<(usize, usize)> {
         let v = self.scene_from_grid.transpose() * (p - self.origin);
-        let (a, e) = direction_index(&self.azimuth, &self.elevation, self.slack, &v);
-        self.bin_at(a, e)
+        direction_bin(
+            [&self.azimuth, &self.elevation],
+            self.slack,
+            &self.tangents,
+            &v,
+        )
     }
 
     /// Bin `(a, e)` (unclamped indices) if it is in the grid.
@@ -268,7 +337,7 @@ mod tests {
     fn direction_bins_are_atan2_s_bit_for_bit() {
         let grid = grid();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
-        let (mut decided, mut random) = (0, 0);
+        let (mut decided, mut decided_tangent, mut random) = (0, 0, 0);
         for i in 0..400_000 {
             let on_edge = i % 2 == 0;
             let both = on_edge && rng.random_bool(0.5);
@@ -281,23 +350,45 @@ mod tests {
             if let Some(fast) = fast {
                 assert_eq!(fast, exact, "{v:?}");
             }
+            // The tangent path's −1 / count stand for any index off the axis.
+            let tangent = direction_index_tangent(&grid.tangents, &v);
+            if let Some((a, e)) = tangent {
+                assert_eq!(grid.bin_at(a, e), grid.bin_at(exact.0, exact.1), "{v:?}");
+                for (got, want, count) in [
+                    (a, exact.0, grid.azimuth.count),
+                    (e, exact.1, grid.elevation.count),
+                ] {
+                    let off = |i: isize| (i < 0, i >= count as isize);
+                    assert_eq!(off(got), off(want), "{v:?}");
+                    if off(want) == (false, false) {
+                        assert_eq!(got, want, "{v:?}");
+                    }
+                }
+            }
             assert_eq!(
-                direction_index(&grid.azimuth, &grid.elevation, grid.slack, &v),
-                exact
+                direction_bin(
+                    [&grid.azimuth, &grid.elevation],
+                    grid.slack,
+                    &grid.tangents,
+                    &v
+                ),
+                grid.bin_at(exact.0, exact.1)
             );
             if !on_edge && v.x > 0.0 {
                 random += 1;
                 decided += usize::from(fast.is_some());
+                decided_tangent += usize::from(tangent.is_some());
             }
         }
         assert_decides_nearly_all(decided, random);
+        assert_decides_nearly_all(decided_tangent, random);
     }
 
     #[test]
     fn ball_bins_are_the_exact_ones_bit_for_bit() {
         let grid = grid();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
-        let (mut decided, mut random) = (0, 0);
+        let (mut decided, mut decided_tangent, mut random) = (0, 0, 0);
         for i in 0..400_000 {
             let on_edge = i % 2 == 0;
             let (az, el) = (
@@ -326,13 +417,20 @@ mod tests {
             if let Some(fast) = fast {
                 assert_eq!(fast, exact, "{c:?} {radius}");
             }
+            let tangent = grid.ball_bins_tangent(&c, radius);
+            if let Some(tangent) = tangent {
+                assert_eq!(tangent, exact, "{c:?} {radius}");
+            }
+            assert_eq!(grid.ball_bins(&c, radius), exact);
             let rho = (c.x * c.x + c.y * c.y).sqrt();
             if i % 4 == 3 && c.x > 0.0 && radius < 0.5 * rho && rho > 0.2 * dist {
                 random += 1;
                 decided += usize::from(fast.is_some());
+                decided_tangent += usize::from(tangent.is_some());
             }
         }
         assert_decides_nearly_all(decided, random);
+        assert_decides_nearly_all(decided_tangent, random);
     }
 
     #[test]
@@ -355,6 +453,9 @@ mod tests {
             let radius = g * (c.x * c.x + c.y * c.y).sqrt();
             if let Some(fast) = grid.ball_bins_fast(&c, radius) {
                 assert_eq!(fast, grid.ball_bins_exact(&c, radius), "{c:?} {radius}");
+            }
+            if let Some(tangent) = grid.ball_bins_tangent(&c, radius) {
+                assert_eq!(tangent, grid.ball_bins_exact(&c, radius), "{c:?} {radius}");
             }
         }
     }
