@@ -62,8 +62,9 @@ impl TangentBins {
             .windows(2)
             .map(|w| w[1] - w[0])
             .fold(f64::INFINITY, f64::min);
-        // Two cells per narrowest bin: a cell meets at most two bins.
-        let per_unit = 2.0 / narrowest;
+        // Four cells per narrowest bin: a cell meets at most two bins, and
+        // few cells meet two.
+        let per_unit = 4.0 / narrowest;
         let span = edges[axis.count] - edges[0];
         let cells = (span * per_unit).ceil() + 1.0;
         if !(narrowest > 0.0 && cells.is_finite() && cells < MAX_CELLS as f64) {
@@ -114,11 +115,13 @@ impl TangentBins {
         // Saturating: a value just below `origin` (and NaN) takes cell 0,
         // whose intervals then reject it.
         let cell = ((t - self.origin) * self.per_unit) as usize;
-        let k = *self.guess.get(cell)? as usize;
-        [k, k + 1].into_iter().find_map(|bin| {
-            let [lo, hi] = *self.clear.get(bin)?;
-            (t > lo && t < hi).then_some(bin as isize)
-        })
+        let guess = *self.guess.get(cell)? as usize;
+        // The guess or the next bin (a cell meets at most two), chosen
+        // without a branch; a value within the slack of the edge between
+        // them fails the check below either way.
+        let bin = guess + usize::from(t >= self.clear[guess][1]);
+        let [lo, hi] = *self.clear.get(bin)?;
+        (t > lo && t < hi).then_some(bin as isize)
     }
 }
 
