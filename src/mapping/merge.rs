@@ -247,7 +247,7 @@ fn corner_offset(i: usize) -> [u16; 3] {
 
 /// The levels above the finest at which a corner cache starts: its block of
 /// `2^k` finest cells a side shares `(2^k + 1)³` lattice points.
-const CORNER_BLOCK: u8 = 2;
+const CORNER_BLOCK: u8 = 3;
 
 /// Lattice points a side of a corner block.
 const LATTICE: usize = (1 << CORNER_BLOCK) + 1;
