@@ -31,17 +31,32 @@ pub(super) const ANGLE_SLACK: f64 = 1e-11;
 /// near 1 the half-width's error grows without bound.
 const RATIO_LIMIT: f64 = 0.9;
 
-/// `(ρ, d)` of the grid-frame offset `c` (horizontal and full distance) when
-/// the fast paths may answer for the ball of `radius` around it: ahead of
-/// the origin (x > 0), with `R/ρ ≤` [`RATIO_LIMIT`] and `ρ/d` at least
-/// `1 −` [`RATIO_LIMIT`] (`R/d ≤ R/ρ`: one bound covers both half-widths).
-/// NaN defers.
+/// The bounding cone of a ball, as the fast paths need it: the horizontal
+/// and full distances of its centre, and the tangents of its half-widths
+/// `β = asin(R/d)` in elevation and `γ = asin(R/ρ)` in azimuth
+/// (`tan asin x = x/√(1 − x²)`).
+struct Cone {
+    rho: f64,
+    dist: f64,
+    tan_beta: f64,
+    tan_gamma: f64,
+}
+
+/// The [`Cone`] of the ball of `radius` around the grid-frame offset `c`
+/// when the fast paths may answer for it: ahead of the origin (x > 0), with
+/// `R/ρ ≤` [`RATIO_LIMIT`] and `ρ/d` at least `1 −` [`RATIO_LIMIT`]
+/// (`R/d ≤ R/ρ`: one bound covers both half-widths). NaN defers.
 #[inline]
-fn ball_ratios(c: &Vector3, radius: f64) -> Option<(f64, f64)> {
+fn ball_cone(c: &Vector3, radius: f64) -> Option<Cone> {
     let rho = (c.x * c.x + c.y * c.y).sqrt();
     let dist = c.norm();
-    (c.x > 0.0 && radius / rho <= RATIO_LIMIT && rho >= (1.0 - RATIO_LIMIT) * dist)
-        .then_some((rho, dist))
+    let (s, g) = (radius / dist, radius / rho);
+    (c.x > 0.0 && g <= RATIO_LIMIT && rho >= (1.0 - RATIO_LIMIT) * dist).then(|| Cone {
+        rho,
+        dist,
+        tan_beta: s / (1.0 - s * s).sqrt(),
+        tan_gamma: g / (1.0 - g * g).sqrt(),
+    })
 }
 
 impl Axis {
@@ -189,11 +204,9 @@ impl LocalGrid {
     /// it needs is decided ([`TangentBins::locate`]); `None` otherwise.
     #[inline]
     pub(super) fn ball_bins_tangent(&self, c: &Vector3, radius: f64) -> Option<Option<BinBox>> {
-        let (rho, dist) = ball_ratios(c, radius)?;
-        let (s, g) = (radius / dist, radius / rho);
-        // tan β and tan γ of β = asin(s), γ = asin(g).
-        let (tb, tg) = (s / (1.0 - s * s).sqrt(), g / (1.0 - g * g).sqrt());
-        let (ta, te) = (c.y / c.x, c.z / rho);
+        let cone = ball_cone(c, radius)?;
+        let (tb, tg) = (cone.tan_beta, cone.tan_gamma);
+        let (ta, te) = (c.y / c.x, c.z / cone.rho);
         let [azimuth, elevation] = &self.tangents;
         Some(self.bin_box(
             (
@@ -205,7 +218,7 @@ impl LocalGrid {
                 azimuth.locate(tan_sum(ta, tg))?,
             ),
             (azimuth.locate(ta)?, elevation.locate(te)?),
-            (dist, radius),
+            (cone.dist, radius),
         ))
     }
 
@@ -213,12 +226,9 @@ impl LocalGrid {
     /// it needs is clear of bin edges; `None` (undecided) otherwise.
     #[inline]
     pub(super) fn ball_bins_fast(&self, c: &Vector3, radius: f64) -> Option<Option<BinBox>> {
-        let (rho, dist) = ball_ratios(c, radius)?;
-        let (s, g) = (radius / dist, radius / rho);
-        let (az, el) = ((c.y / c.x).atan(), (c.z / rho).atan());
-        // asin(x) = atan(x / √(1 − x²)).
-        let beta = (s / (1.0 - s * s).sqrt()).atan();
-        let gamma = (g / (1.0 - g * g).sqrt()).atan();
+        let cone = ball_cone(c, radius)?;
+        let (az, el) = ((c.y / c.x).atan(), (c.z / cone.rho).atan());
+        let (beta, gamma) = (cone.tan_beta.atan(), cone.tan_gamma.atan());
         let [sa, se] = self.slack;
         Some(self.bin_box(
             (
@@ -233,7 +243,7 @@ impl LocalGrid {
                 self.azimuth.index_clear(az, sa)?,
                 self.elevation.index_clear(el, se)?,
             ),
-            (dist, radius),
+            (cone.dist, radius),
         ))
     }
 

@@ -29,13 +29,12 @@ const MAX_CELLS: usize = 1 << 16;
 /// tangent that guesses the bin of a value to within one.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct TangentBins {
-    /// Number of bins of the axis.
-    count: usize,
     /// `tan(start − slack)` and `tan(end + slack)`: beyond them an angle is
     /// surely off the axis.
     below: f64,
     above: f64,
-    /// Per bin, the open interval of tangents surely inside it.
+    /// Per bin, the open interval of tangents surely inside it (empty: no
+    /// table).
     clear: Vec<[f64; 2]>,
     /// `tan(start)`, and guess-table cells per unit of tangent.
     origin: f64,
@@ -87,7 +86,6 @@ impl TangentBins {
             })
             .collect();
         Self {
-            count: axis.count,
             below: (start - ANGLE_SLACK).tan(),
             above: (end + ANGLE_SLACK).tan(),
             clear,
@@ -110,7 +108,7 @@ impl TangentBins {
             return Some(-1);
         }
         if t > self.above {
-            return Some(self.count as isize);
+            return Some(self.clear.len() as isize);
         }
         // Saturating: a value just below `origin` (and NaN) takes cell 0,
         // whose intervals then reject it.
