@@ -67,7 +67,42 @@ pub struct Beam {
     pub sigma_origin: f64,
 }
 
+/// Where a beam's surface lies along its line, `λ ~ N(range, σ²)`, and the
+/// origin's σ_o along it: a [`Beam`] without its direction, as a bin's
+/// nearest surface keeps it (§5.4).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    /// Range r (m); `f64::INFINITY` for a no-return beam.
+    pub range: f64,
+    /// Range standard deviation σ.
+    pub sigma: f64,
+    /// Origin standard deviation σ_o.
+    pub sigma_origin: f64,
+}
+
+impl Surface {
+    /// [`Beam::band_start`] of this surface.
+    #[inline]
+    pub fn band_start(&self, max_range: f64) -> f64 {
+        if self.range.is_finite() {
+            self.range - TAIL * self.sigma
+        } else {
+            max_range
+        }
+    }
+}
+
 impl Beam {
+    /// The beam's surface (its range, σ and σ_o).
+    #[inline]
+    pub fn surface(&self) -> Surface {
+        Surface {
+            range: self.range,
+            sigma: self.sigma,
+            sigma_origin: self.sigma_origin,
+        }
+    }
+
     /// Where this beam stops carrying information: `r + TAIL σ`, or the
     /// maximum range for a no-return beam.
     #[inline]
@@ -83,11 +118,7 @@ impl Beam {
     /// to within Φ(−TAIL).
     #[inline]
     pub fn band_start(&self, max_range: f64) -> f64 {
-        if self.range.is_finite() {
-            self.range - TAIL * self.sigma
-        } else {
-            max_range
-        }
+        self.surface().band_start(max_range)
     }
 }
 
@@ -150,8 +181,8 @@ impl CellModel {
 
     /// `P(λ > ρ)` for a beam with a return: [`CellModel::split`]'s last term
     /// at the chord `[ρ, ρ]`, with one tail evaluated instead of two.
-    fn beyond(beam: &Beam, rho: f64) -> f64 {
-        let (r, sigma) = (beam.range, beam.sigma);
+    fn beyond(surface: &Surface, rho: f64) -> f64 {
+        let (r, sigma) = (surface.range, surface.sigma);
         if sigma <= 0.0 {
             f64::from(r > rho)
         } else if rho > r + TAIL * sigma {
@@ -167,15 +198,15 @@ impl CellModel {
     /// times the origin step `Φ(ρ / σ_o)`, or 0 when the risk level does not
     /// allow calling it free (`P(λ > ρ) < 1 − ε`). A no-return beam frees every
     /// point within the maximum range.
-    pub fn free_at(&self, beam: &Beam, rho: f64, max_range: f64) -> f64 {
-        let beyond = if beam.range.is_finite() {
-            Self::beyond(beam, rho)
+    pub fn free_at(&self, surface: &Surface, rho: f64, max_range: f64) -> f64 {
+        let beyond = if surface.range.is_finite() {
+            Self::beyond(surface, rho)
         } else {
             f64::from(rho < max_range)
         };
         match self.risk {
             Some(eps) if beyond < 1.0 - eps => 0.0,
-            _ => beyond * origin_step(rho, beam.sigma_origin),
+            _ => beyond * origin_step(rho, surface.sigma_origin),
         }
     }
 

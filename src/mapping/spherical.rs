@@ -14,7 +14,7 @@
 //! field of view across the poles or the azimuth wrap (§8, open question 3,
 //! leaves the choice open). Merging costs one extra rotation.
 
-use super::chord::{Beam, TAIL};
+use super::chord::{Beam, Surface, TAIL};
 use crate::geometry::{floor, Matrix3, Vector3};
 use rayon::prelude::*;
 use tangent::TangentBins;
@@ -167,7 +167,7 @@ pub struct LocalGrid {
     inverse: Vec<Vector3>,
     /// Per bin, the nearest the surface may come within the bin's solid
     /// angle (see `bin_surface`); `None` for an empty bin.
-    surfaces: Vec<Option<Beam>>,
+    surfaces: Vec<Option<Surface>>,
     /// Level k aggregates 2^k bins a side; level 0 is the bins.
     levels: Vec<Level>,
 }
@@ -329,7 +329,7 @@ impl LocalGrid {
     /// in front of the surface across the whole bin (§5.4). `None`: an empty
     /// bin (nothing is known there).
     #[inline]
-    pub fn bin_surface(&self, a: usize, e: usize) -> Option<&Beam> {
+    pub fn bin_surface(&self, a: usize, e: usize) -> Option<&Surface> {
         self.surfaces[a * self.elevation.count + e].as_ref()
     }
 
@@ -340,23 +340,40 @@ impl LocalGrid {
     /// its σ is the largest of the beams involved.
     fn build_surfaces(&mut self) {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
-        let own = per_bin(na, ne, None, |a, e| {
+        // An empty bin's entry never lowers a neighbour's range (its range is
+        // +∞, like a no-return bin's); whether the bin itself is empty is
+        // read from `offsets`.
+        const NOTHING: Surface = Surface {
+            range: f64::INFINITY,
+            sigma: 0.0,
+            sigma_origin: 0.0,
+        };
+        let own = per_bin(na, ne, NOTHING, |a, e| {
             let (beams, _) = self.bin_beams(a, e);
-            beams.iter().copied().reduce(|best, b| Beam {
-                sigma: best.sigma.max(b.sigma),
-                sigma_origin: best.sigma_origin.max(b.sigma_origin),
-                ..if b.range < best.range { b } else { best }
-            })
+            beams
+                .iter()
+                .map(Beam::surface)
+                .reduce(|best, b| Surface {
+                    range: if b.range < best.range {
+                        b.range
+                    } else {
+                        best.range
+                    },
+                    sigma: best.sigma.max(b.sigma),
+                    sigma_origin: best.sigma_origin.max(b.sigma_origin),
+                })
+                .unwrap_or(NOTHING)
         });
         self.surfaces = per_bin(na, ne, None, |a, e| {
-            let mut surface = own[a * ne + e]?;
+            let i = a * ne + e;
+            if self.offsets[i] == self.offsets[i + 1] {
+                return None;
+            }
+            let mut surface = own[i];
             let base = surface.range;
             // The 3 x 3 neighbourhood; the bin itself never lowers `base`.
             for x in a.saturating_sub(1)..=(a + 1).min(na - 1) {
-                for y in e.saturating_sub(1)..=(e + 1).min(ne - 1) {
-                    let Some(other) = own[x * ne + y] else {
-                        continue;
-                    };
+                for other in &own[x * ne + e.saturating_sub(1)..=x * ne + (e + 1).min(ne - 1)] {
                     let bound = if base.is_finite() {
                         0.5 * (base + other.range)
                     } else {

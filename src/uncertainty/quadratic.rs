@@ -50,14 +50,62 @@ impl QuadraticCovariance {
     }
 
     /// `Γ(X)` at `X̃`.
+    ///
+    /// Each entry is `x · (Q_ab x)` with the operations, and so the bits, of
+    /// nalgebra's `x.dot(&(q * x))`: `Q x` accumulated column by column,
+    /// `y = Q_{·0} x_0`, then `y = Q_{·j} x_j + y`; the dot product as
+    /// `(x_0 y_0 + x_2 y_2) + (x_1 y_1 + x_3 y_3)`. Written out over plain
+    /// arrays so that the four rows go through the vector unit together.
     #[inline]
     pub fn evaluate(&self, x: &Vector4<f64>) -> Matrix3 {
+        let x = [x[0], x[1], x[2], x[3]];
+        let mut entries = [0.0; 6];
+        for (q, entry) in self.q.iter().zip(&mut entries) {
+            let q = q.as_slice();
+            let mut y = [0.0; 4];
+            for (r, y) in y.iter_mut().enumerate() {
+                *y = q[r] * x[0];
+            }
+            for (j, &xj) in x.iter().enumerate().skip(1) {
+                for (r, y) in y.iter_mut().enumerate() {
+                    *y += q[4 * j + r] * xj;
+                }
+            }
+            *entry = (x[0] * y[0] + x[2] * y[2]) + (x[1] * y[1] + x[3] * y[3]);
+        }
         let mut cov = Matrix3::zeros();
-        for ((a, b), q) in PAIRS.iter().zip(&self.q) {
-            let v = x.dot(&(q * x));
-            cov[(*a, *b)] = v;
-            cov[(*b, *a)] = v;
+        for (&(a, b), &v) in PAIRS.iter().zip(&entries) {
+            cov[(a, b)] = v;
+            cov[(b, a)] = v;
         }
         cov
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The written-out evaluation is nalgebra's `x.dot(&(q * x))` bit for
+    /// bit, so the maps do not move.
+    #[test]
+    fn evaluate_matches_nalgebra_bit_for_bit() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut draw = |scale: f64| rng.random_range(-1.0..1.0) * scale;
+        for _ in 0..2_000 {
+            let mut quadratic = QuadraticCovariance::default();
+            for q in &mut quadratic.q {
+                *q = Matrix4::from_fn(|_, _| draw(1e-4));
+            }
+            let quadratic = quadratic.finish();
+            let x = Vector4::new(draw(3.0), draw(3.0), draw(3.0), 1.0);
+            let got = quadratic.evaluate(&x);
+            for (&(a, b), q) in PAIRS.iter().zip(&quadratic.q) {
+                let want = x.dot(&(q * x));
+                assert_eq!(got[(a, b)].to_bits(), want.to_bits(), "({a}, {b})");
+                assert_eq!(got[(b, a)].to_bits(), want.to_bits(), "({b}, {a})");
+            }
+        }
     }
 }

@@ -225,22 +225,24 @@ fn split_and_free_at_are_the_first_hit_probabilities() {
         }
     }
     // A point is free with the probability the surface lies beyond it...
-    assert!((model.free_at(&beam, 0.99, 2.0) - normal_cdf(1.0)).abs() < 1e-12);
+    assert!((model.free_at(&beam.surface(), 0.99, 2.0) - normal_cdf(1.0)).abs() < 1e-12);
     // ...and not at all when that misses the risk level.
     assert_eq!(
-        CellModel::with_risk(Some(0.05)).free_at(&beam, 0.99, 2.0),
+        CellModel::with_risk(Some(0.05)).free_at(&beam.surface(), 0.99, 2.0),
         0.0
     );
     assert!(
-        (CellModel::with_risk(Some(0.2)).free_at(&beam, 0.99, 2.0) - normal_cdf(1.0)).abs() < 1e-12
+        (CellModel::with_risk(Some(0.2)).free_at(&beam.surface(), 0.99, 2.0) - normal_cdf(1.0))
+            .abs()
+            < 1e-12
     );
     // A no-return beam frees every point within the maximum range.
     let miss = Beam {
         range: f64::INFINITY,
         ..beam
     };
-    assert_eq!(model.free_at(&miss, 1.9, 2.0), 1.0);
-    assert_eq!(model.free_at(&miss, 2.1, 2.0), 0.0);
+    assert_eq!(model.free_at(&miss.surface(), 1.9, 2.0), 1.0);
+    assert_eq!(model.free_at(&miss.surface(), 2.1, 2.0), 0.0);
 }
 
 #[test]
@@ -262,7 +264,7 @@ fn beyond_is_split_s_last_term_bit_for_bit() {
         let rho = beam.range + rng.random_range(-9.0..9.0) * sigma.max(1e-3);
         let (_, _, after) = model.split(&beam, rho, rho, 3.0);
         assert_eq!(
-            CellModel::beyond(&beam, rho).to_bits(),
+            CellModel::beyond(&beam.surface(), rho).to_bits(),
             after.to_bits(),
             "{beam:?} at {rho}"
         );

@@ -111,9 +111,11 @@ impl TangentBins {
             return Some(self.clear.len() as isize);
         }
         // Saturating: a value just below `origin` (and NaN) takes cell 0,
-        // whose intervals then reject it.
-        let cell = ((t - self.origin) * self.per_unit) as usize;
-        let guess = *self.guess.get(cell)? as usize;
+        // whose intervals then reject it; one beyond the table, u32::MAX. (To
+        // u32, not usize: x86 converts to a signed integer in one instruction,
+        // to an unsigned 64-bit one in several.)
+        let cell = ((t - self.origin) * self.per_unit) as u32;
+        let guess = *self.guess.get(cell as usize)? as usize;
         // The guess or the next bin (a cell meets at most two), chosen
         // without a branch; a value within the slack of the edge between
         // them fails the check below either way.
