@@ -143,6 +143,14 @@ fn per_bin<T: Copy + Send + Sync>(
     out
 }
 
+/// The first pyramid level where `span` bins fall in at most two tiles per
+/// axis: the least `l` with `span >> l ≤ 2`, i.e. `span < 3 · 2^l`, i.e.
+/// `⌊span / 3⌋ < 2^l`, the bit length of `⌊span / 3⌋`.
+#[inline]
+fn query_level(span: usize) -> usize {
+    (usize::BITS - (span / 3).leading_zeros()) as usize
+}
+
 /// A filled local grid.
 #[derive(Clone, Debug)]
 pub struct LocalGrid {
@@ -443,10 +451,7 @@ impl LocalGrid {
     /// coarsest pyramid level where the box spans at most two cells per axis.
     pub fn query(&self, a: (usize, usize), e: (usize, usize)) -> BoxSummary {
         let span = (a.1 - a.0).max(e.1 - e.0) + 1;
-        let mut level = 0;
-        while level + 1 < self.levels.len() && (span >> level) > 2 {
-            level += 1;
-        }
+        let level = query_level(span).min(self.levels.len() - 1);
         let l = &self.levels[level];
         let mut out = BoxSummary::EMPTY;
         for aa in a.0 >> level..=a.1 >> level {

@@ -55,10 +55,29 @@ impl QuadraticCovariance {
     /// nalgebra's `x.dot(&(q * x))`: `Q x` accumulated column by column,
     /// `y = Q_{·0} x_0`, then `y = Q_{·j} x_j + y`; the dot product as
     /// `(x_0 y_0 + x_2 y_2) + (x_1 y_1 + x_3 y_3)`. Written out over plain
-    /// arrays so that the four rows go through the vector unit together.
+    /// arrays so that the four rows go through the vector unit together, four
+    /// lanes wide where the CPU has AVX (separate multiplies and adds, never
+    /// fused: the same roundings on either path).
     #[inline]
     pub fn evaluate(&self, x: &Vector4<f64>) -> Matrix3 {
         let x = [x[0], x[1], x[2], x[3]];
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: the CPU has AVX, checked just above.
+            return unsafe { self.evaluate_avx(&x) };
+        }
+        self.evaluate_at(&x)
+    }
+
+    /// [`QuadraticCovariance::evaluate`] compiled for AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn evaluate_avx(&self, x: &[f64; 4]) -> Matrix3 {
+        self.evaluate_at(x)
+    }
+
+    #[inline(always)]
+    fn evaluate_at(&self, x: &[f64; 4]) -> Matrix3 {
         let mut entries = [0.0; 6];
         for (q, entry) in self.q.iter().zip(&mut entries) {
             let q = q.as_slice();
@@ -100,11 +119,17 @@ mod tests {
             }
             let quadratic = quadratic.finish();
             let x = Vector4::new(draw(3.0), draw(3.0), draw(3.0), 1.0);
-            let got = quadratic.evaluate(&x);
-            for (&(a, b), q) in PAIRS.iter().zip(&quadratic.q) {
-                let want = x.dot(&(q * x));
-                assert_eq!(got[(a, b)].to_bits(), want.to_bits(), "({a}, {b})");
-                assert_eq!(got[(b, a)].to_bits(), want.to_bits(), "({b}, {a})");
+            // The dispatched path (AVX where the CPU has it) and the plain one.
+            let paths = [
+                quadratic.evaluate(&x),
+                quadratic.evaluate_at(&[x[0], x[1], x[2], x[3]]),
+            ];
+            for got in paths {
+                for (&(a, b), q) in PAIRS.iter().zip(&quadratic.q) {
+                    let want = x.dot(&(q * x));
+                    assert_eq!(got[(a, b)].to_bits(), want.to_bits(), "({a}, {b})");
+                    assert_eq!(got[(b, a)].to_bits(), want.to_bits(), "({b}, {a})");
+                }
             }
         }
     }

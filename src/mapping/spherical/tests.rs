@@ -145,3 +145,14 @@ fn a_bins_surface_is_the_nearest_the_surface_comes_within_it() {
     }
     assert!(pulled > 10, "{pulled}");
 }
+
+#[test]
+fn the_query_level_is_the_first_with_at_most_two_tiles_a_side() {
+    for span in 1..100_000usize {
+        let mut level = 0;
+        while (span >> level) > 2 {
+            level += 1;
+        }
+        assert_eq!(super::query_level(span), level, "span {span}");
+    }
+}
