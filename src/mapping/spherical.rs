@@ -115,8 +115,8 @@ pub fn spherical(v: &Vector3) -> (f64, f64, f64) {
     (r, v.y.atan2(v.x), v.z.atan2((v.x * v.x + v.y * v.y).sqrt()))
 }
 
-/// The placeholder of a beam left out of the grid (sorted past the last bin
-/// and cut off).
+/// The placeholder of a beam left out of the grid (its bin one past the last:
+/// never placed).
 const LEFT_OUT: Beam = Beam {
     direction: Vector3::new(0.0, 0.0, 0.0),
     range: 0.0,
@@ -227,12 +227,12 @@ impl LocalGrid {
         let bins = azimuth.count * elevation.count;
         let slack = lookup::slack(&azimuth, &elevation);
         let tangents = [TangentBins::new(&azimuth), TangentBins::new(&elevation)];
-        // Each beam's (bin, index) and the beam, in input order; `bins` (one
-        // past the last bin) marks a beam left out, so the sort puts those last.
-        let (mut order, unbinned): (Vec<(u32, u32)>, Vec<Beam>) = (0..count)
+        // Each beam's bin and the beam, in input order; `bins` (one past the
+        // last bin) marks a beam left out.
+        let (bin_of, unbinned): (Vec<u32>, Vec<Beam>) = (0..count)
             .into_par_iter()
             .map(|i| {
-                let left_out = ((bins as u32, i as u32), LEFT_OUT);
+                let left_out = (bins as u32, LEFT_OUT);
                 let Some(end) = end(i) else {
                     return left_out;
                 };
@@ -266,24 +266,30 @@ impl LocalGrid {
                     sigma,
                     sigma_origin,
                 };
-                (((a * elevation.count + e) as u32, i as u32), beam)
+                ((a * elevation.count + e) as u32, beam)
             })
             .unzip();
-        // Sorted as (bin, index) pairs, stable (radix): beams keep their
-        // input order within a bin.
-        radsort::sort_by_key(&mut order, |&(bin, _)| bin);
-        order.truncate(order.partition_point(|&(bin, _)| (bin as usize) < bins));
+        // A counting sort by bin, stable: beams keep their input order
+        // within a bin; those left out are not placed.
         let mut offsets = vec![0u32; bins + 1];
-        for &(bin, _) in &order {
-            offsets[bin as usize + 1] += 1;
+        for &bin in &bin_of {
+            if let Some(count) = offsets.get_mut(bin as usize + 1) {
+                *count += 1;
+            }
         }
         for i in 0..bins {
             offsets[i + 1] += offsets[i];
         }
-        let beams: Vec<Beam> = order
-            .par_iter()
-            .map(|&(_, i)| unbinned[i as usize])
-            .collect();
+        let mut next = offsets.clone();
+        let mut sorted = vec![0u32; offsets[bins] as usize];
+        for (i, &bin) in bin_of.iter().enumerate() {
+            if (bin as usize) < bins {
+                let slot = &mut next[bin as usize];
+                sorted[*slot as usize] = i as u32;
+                *slot += 1;
+            }
+        }
+        let beams: Vec<Beam> = sorted.par_iter().map(|&i| unbinned[i as usize]).collect();
         let inverse = beams
             .par_iter()
             .map(|b| b.direction.map(|c| 1.0 / c))
