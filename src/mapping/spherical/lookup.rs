@@ -113,12 +113,24 @@ pub(super) fn direction_bin(
     v: &Vector3,
 ) -> Option<(usize, usize)> {
     let (a, e) = direction_index_tangent(tangents, v)
-        .or_else(|| direction_index_fast(azimuth, elevation, slack, v))
-        .unwrap_or_else(|| {
-            let (_, az, el) = spherical(v);
-            (azimuth.index(az), elevation.index(el))
-        });
+        .unwrap_or_else(|| direction_index_off_table([azimuth, elevation], slack, v));
     bin_in(azimuth, elevation, a, e)
+}
+
+/// [`direction_bin`]'s indices where the tangent table leaves them undecided
+/// (under 0.1% of directions): the `atan` path, then libm. Kept out of line
+/// so that the table's path inlines into its callers.
+#[cold]
+#[inline(never)]
+fn direction_index_off_table(
+    [azimuth, elevation]: [&Axis; 2],
+    slack: [f64; 2],
+    v: &Vector3,
+) -> (isize, isize) {
+    direction_index_fast(azimuth, elevation, slack, v).unwrap_or_else(|| {
+        let (_, az, el) = spherical(v);
+        (azimuth.index(az), elevation.index(el))
+    })
 }
 
 /// The (azimuth, elevation) bin indices of `v` from the tangents `y/x` and
