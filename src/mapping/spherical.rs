@@ -273,8 +273,8 @@ impl LocalGrid {
         // within a bin; those left out are not placed.
         let mut offsets = vec![0u32; bins + 1];
         for &bin in &bin_of {
-            if let Some(count) = offsets.get_mut(bin as usize + 1) {
-                *count += 1;
+            if (bin as usize) < bins {
+                offsets[bin as usize + 1] += 1;
             }
         }
         for i in 0..bins {
