@@ -12,7 +12,7 @@ use crate::mapping::merge::merge_with;
 use crate::mapping::pooling::pool_ranges;
 use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::shared_motion::expect_over_shared_motion;
-use crate::mapping::spherical::BeamEnd;
+use crate::mapping::spherical::{BeamEnd, GridBuffers};
 use crate::mapping::surface_cells::SurfaceCells;
 use crate::mapping::viewpoint::{local_grid_of, Raster};
 use crate::mapping::{Clamp, MapSettings, Octree};
@@ -297,7 +297,7 @@ pub fn build_map_measured(
     let geometry = Octree::new(resolution);
     // Scan i's local grid (its beams propagated and binned) and the cells
     // its surface bands reach.
-    let grid_of = |i: usize| {
+    let grid_of = |i: usize, buffers: GridBuffers| {
         let scan = &scans[i];
         let full_chain = scan_chain(scan);
         let chain = if method == Method::Correlated {
@@ -330,8 +330,8 @@ pub fn build_map_measured(
             Some(end)
         };
         let grid = local_grid_of(
-            &(origin.mean + offset),
-            &origin.covariance,
+            buffers,
+            (&(origin.mean + offset), &origin.covariance),
             &scene_from_camera,
             raster,
             (scan.measurements.len(), end),
@@ -340,21 +340,48 @@ pub fn build_map_measured(
         let surfaces = SurfaceCells::new(&grid, &options.model, &geometry);
         (grid, surfaces)
     };
-    // A pipeline: the next scan's grid is built while this one is merged.
-    let mut next = (!scans.is_empty()).then(|| grid_of(0));
+    if rayon::current_num_threads() == 1 {
+        // Nothing to overlap: one grid at a time, each built in the memory
+        // of the one before.
+        let mut buffers = GridBuffers::default();
+        for i in 0..scans.len() {
+            let (grid, surfaces) = grid_of(i, buffers);
+            merge_with(&mut tree, &grid, &surfaces, &options);
+            buffers = grid.into_buffers();
+        }
+        return finish_opdf(tree, scans, method, offset, options.clamp);
+    }
+    // A pipeline: the next scan's grid is built (in the memory of the one
+    // before this) while this one is merged.
+    let mut next = (!scans.is_empty()).then(|| grid_of(0, GridBuffers::default()));
+    let mut spare = GridBuffers::default();
     for i in 0..scans.len() {
         let (grid, surfaces) = next.take().expect("a grid per scan");
+        let buffers = std::mem::take(&mut spare);
         let ((), following) = rayon::join(
             || {
                 merge_with(&mut tree, &grid, &surfaces, &options);
             },
-            || (i + 1 < scans.len()).then(|| grid_of(i + 1)),
+            || (i + 1 < scans.len()).then(|| grid_of(i + 1, buffers)),
         );
+        spare = grid.into_buffers();
         next = following;
     }
+    finish_opdf(tree, scans, method, offset, options.clamp)
+}
+
+/// The OPDF map's last steps once every grid is merged: the `correlated`
+/// method's shared motion, then the tree's spare capacity released.
+fn finish_opdf(
+    mut tree: Octree,
+    scans: &[Scan],
+    method: Method,
+    offset: &Vector3,
+    clamp: Clamp,
+) -> Result<Octree> {
     if method == Method::Correlated {
         let chains: Vec<_> = scans.iter().map(scan_chain).collect();
-        take_shared_motion(&mut tree, &chains, offset, options.clamp)?;
+        take_shared_motion(&mut tree, &chains, offset, clamp)?;
     }
     tree.shrink_to_fit();
     Ok(tree)

@@ -99,6 +99,21 @@ pub struct BinBox {
     pub centre: Option<(usize, usize)>,
 }
 
+/// Where a local grid sits and how its angular bins are laid out.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridLayout {
+    /// Mean sensor origin û in the scene frame.
+    pub origin: Vector3,
+    /// Rotation taking grid coordinates to scene coordinates.
+    pub scene_from_grid: Matrix3,
+    /// Azimuth bins (rad).
+    pub azimuth: Axis,
+    /// Elevation bins (rad).
+    pub elevation: Axis,
+    /// The scanner's maximum range (m).
+    pub max_range: f64,
+}
+
 /// A beam's end as the modeller knows it, in the scene frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum BeamEnd {
@@ -124,15 +139,16 @@ const LEFT_OUT: Beam = Beam {
     sigma_origin: 0.0,
 };
 
-/// `f(a, e)` for every bin of an `na` × `ne` grid, row by row (`a` major),
-/// the rows in parallel.
-fn per_bin<T: Copy + Send + Sync>(
-    na: usize,
-    ne: usize,
+/// `f(a, e)` for every bin of an `na` × `ne` grid into `out`, row by row
+/// (`a` major), the rows in parallel; `out`'s memory is reused.
+fn per_bin_into<T: Copy + Send + Sync>(
+    out: &mut Vec<T>,
+    (na, ne): (usize, usize),
     fill: T,
     f: impl Fn(usize, usize) -> T + Sync,
-) -> Vec<T> {
-    let mut out = vec![fill; na * ne];
+) {
+    out.clear();
+    out.resize(na * ne, fill);
     out.par_chunks_mut(ne.max(1))
         .enumerate()
         .for_each(|(a, row)| {
@@ -140,7 +156,30 @@ fn per_bin<T: Copy + Send + Sync>(
                 *slot = f(a, e);
             }
         });
-    out
+}
+
+/// The memory of a local grid, its working arrays included, to build the
+/// next grid in: a map's viewpoints then touch fresh pages once, not once
+/// per viewpoint (page faults cost a few percent of a coarse map).
+#[derive(Debug, Default)]
+pub struct GridBuffers {
+    bin_of: Vec<u32>,
+    unbinned: Vec<Beam>,
+    next: Vec<u32>,
+    sorted: Vec<u32>,
+    own: Vec<Surface>,
+    offsets: Vec<u32>,
+    beams: Vec<Beam>,
+    inverse: Vec<Vector3>,
+    surfaces: Vec<Option<Surface>>,
+    levels: Vec<Vec<BoxSummary>>,
+}
+
+/// A copy carries no spare memory: buffers hold no content a grid reads.
+impl Clone for GridBuffers {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
 }
 
 /// The first pyramid level where `span` bins fall in at most two tiles per
@@ -178,6 +217,8 @@ pub struct LocalGrid {
     surfaces: Vec<Option<Surface>>,
     /// Level k aggregates 2^k bins a side; level 0 is the bins.
     levels: Vec<Level>,
+    /// The working arrays the grid was built with, kept for the next.
+    spare: GridBuffers,
 }
 
 /// One level of the pyramid over the angular bins.
@@ -220,16 +261,53 @@ impl LocalGrid {
         azimuth: Axis,
         elevation: Axis,
         max_range: f64,
+        ends: (usize, impl Fn(usize) -> Option<BeamEnd> + Sync),
+        origin_covariance: &Matrix3,
+    ) -> Self {
+        let layout = GridLayout {
+            origin,
+            scene_from_grid,
+            azimuth,
+            elevation,
+            max_range,
+        };
+        Self::from_ends_in(GridBuffers::default(), layout, ends, origin_covariance)
+    }
+
+    /// [`LocalGrid::from_ends`] in the memory of `buffers` (from
+    /// [`LocalGrid::into_buffers`]); the grid is the same.
+    pub fn from_ends_in(
+        mut buffers: GridBuffers,
+        layout: GridLayout,
         (count, end): (usize, impl Fn(usize) -> Option<BeamEnd> + Sync),
         origin_covariance: &Matrix3,
     ) -> Self {
+        let GridLayout {
+            origin,
+            scene_from_grid,
+            azimuth,
+            elevation,
+            max_range,
+        } = layout;
         let grid_from_scene = scene_from_grid.transpose();
         let bins = azimuth.count * elevation.count;
         let slack = lookup::slack(&azimuth, &elevation);
         let tangents = [TangentBins::new(&azimuth), TangentBins::new(&elevation)];
         // Each beam's bin and the beam, in input order; `bins` (one past the
         // last bin) marks a beam left out.
-        let (bin_of, unbinned): (Vec<u32>, Vec<Beam>) = (0..count)
+        let GridBuffers {
+            mut bin_of,
+            mut unbinned,
+            mut next,
+            mut sorted,
+            own,
+            mut offsets,
+            mut beams,
+            mut inverse,
+            surfaces,
+            levels,
+        } = std::mem::take(&mut buffers);
+        (0..count)
             .into_par_iter()
             .map(|i| {
                 let left_out = (bins as u32, LEFT_OUT);
@@ -268,10 +346,11 @@ impl LocalGrid {
                 };
                 ((a * elevation.count + e) as u32, beam)
             })
-            .unzip();
+            .unzip_into_vecs(&mut bin_of, &mut unbinned);
         // A counting sort by bin, stable: beams keep their input order
         // within a bin; those left out are not placed.
-        let mut offsets = vec![0u32; bins + 1];
+        offsets.clear();
+        offsets.resize(bins + 1, 0);
         for &bin in &bin_of {
             if (bin as usize) < bins {
                 offsets[bin as usize + 1] += 1;
@@ -280,8 +359,9 @@ impl LocalGrid {
         for i in 0..bins {
             offsets[i + 1] += offsets[i];
         }
-        let mut next = offsets.clone();
-        let mut sorted = vec![0u32; offsets[bins] as usize];
+        next.clone_from(&offsets);
+        sorted.clear();
+        sorted.resize(offsets[bins] as usize, 0);
         for (i, &bin) in bin_of.iter().enumerate() {
             if (bin as usize) < bins {
                 let slot = &mut next[bin as usize];
@@ -289,11 +369,22 @@ impl LocalGrid {
                 *slot += 1;
             }
         }
-        let beams: Vec<Beam> = sorted.par_iter().map(|&i| unbinned[i as usize]).collect();
-        let inverse = beams
+        sorted
+            .par_iter()
+            .map(|&i| unbinned[i as usize])
+            .collect_into_vec(&mut beams);
+        beams
             .par_iter()
             .map(|b| b.direction.map(|c| 1.0 / c))
-            .collect();
+            .collect_into_vec(&mut inverse);
+        buffers = GridBuffers {
+            bin_of,
+            unbinned,
+            next,
+            sorted,
+            own,
+            ..GridBuffers::default()
+        };
         let mut grid = Self {
             origin,
             scene_from_grid,
@@ -305,12 +396,26 @@ impl LocalGrid {
             offsets,
             beams,
             inverse,
-            surfaces: Vec::new(),
+            surfaces,
             levels: Vec::new(),
+            spare: buffers,
         };
         grid.build_surfaces();
-        grid.build_pyramid();
+        grid.build_pyramid(levels);
         grid
+    }
+
+    /// The grid's memory, to build the next grid in
+    /// ([`LocalGrid::from_ends_in`]).
+    pub fn into_buffers(self) -> GridBuffers {
+        GridBuffers {
+            offsets: self.offsets,
+            beams: self.beams,
+            inverse: self.inverse,
+            surfaces: self.surfaces,
+            levels: self.levels.into_iter().map(|l| l.cells).collect(),
+            ..self.spare
+        }
     }
 
     /// Number of beams held.
@@ -362,7 +467,8 @@ impl LocalGrid {
             sigma: 0.0,
             sigma_origin: 0.0,
         };
-        let own = per_bin(na, ne, NOTHING, |a, e| {
+        let mut own = std::mem::take(&mut self.spare.own);
+        per_bin_into(&mut own, (na, ne), NOTHING, |a, e| {
             let (beams, _) = self.bin_beams(a, e);
             beams
                 .iter()
@@ -378,7 +484,8 @@ impl LocalGrid {
                 })
                 .unwrap_or(NOTHING)
         });
-        self.surfaces = per_bin(na, ne, None, |a, e| {
+        let mut surfaces = std::mem::take(&mut self.surfaces);
+        per_bin_into(&mut surfaces, (na, ne), None, |a, e| {
             let i = a * ne + e;
             if self.offsets[i] == self.offsets[i + 1] {
                 return None;
@@ -401,11 +508,16 @@ impl LocalGrid {
             }
             Some(surface)
         });
+        self.surfaces = surfaces;
+        self.spare.own = own;
     }
 
-    fn build_pyramid(&mut self) {
+    /// The pyramid, its levels' cells in the memory of `reuse`.
+    fn build_pyramid(&mut self, reuse: Vec<Vec<BoxSummary>>) {
+        let mut reuse = reuse.into_iter();
         let mut dims = [self.azimuth.count, self.elevation.count];
-        let cells = per_bin(dims[0], dims[1], BoxSummary::EMPTY, |a, e| {
+        let mut cells = reuse.next().unwrap_or_default();
+        per_bin_into(&mut cells, (dims[0], dims[1]), BoxSummary::EMPTY, |a, e| {
             let mut s = BoxSummary::EMPTY;
             let (beams, _) = self.bin_beams(a, e);
             for b in beams {
@@ -425,15 +537,21 @@ impl LocalGrid {
             let prev = self.levels.last().expect("level 0");
             let next_dims = dims.map(|d| d.div_ceil(2));
             // Each tile of the next level aggregates its (up to) 2 × 2 cells.
-            let next = per_bin(next_dims[0], next_dims[1], BoxSummary::EMPTY, |ta, te| {
-                let mut s = BoxSummary::EMPTY;
-                for a in 2 * ta..(2 * ta + 2).min(dims[0]) {
-                    for e in 2 * te..(2 * te + 2).min(dims[1]) {
-                        s.add(&prev.cells[a * dims[1] + e]);
+            let mut next = reuse.next().unwrap_or_default();
+            per_bin_into(
+                &mut next,
+                (next_dims[0], next_dims[1]),
+                BoxSummary::EMPTY,
+                |ta, te| {
+                    let mut s = BoxSummary::EMPTY;
+                    for a in 2 * ta..(2 * ta + 2).min(dims[0]) {
+                        for e in 2 * te..(2 * te + 2).min(dims[1]) {
+                            s.add(&prev.cells[a * dims[1] + e]);
+                        }
                     }
-                }
-                s
-            });
+                    s
+                },
+            );
             dims = next_dims;
             self.levels.push(Level { dims, cells: next });
         }

@@ -1,6 +1,6 @@
 //! One viewpoint's local grid from its propagated beams (docs/math.md §4.5, §5.1).
 
-use super::spherical::{Axis, BeamEnd, LocalGrid};
+use super::spherical::{Axis, BeamEnd, GridBuffers, GridLayout, LocalGrid};
 use crate::geometry::{Matrix3, Vector3};
 
 /// The angular layout of the scanner: its column and row angles (rad).
@@ -41,8 +41,8 @@ pub fn local_grid(
 ) -> LocalGrid {
     let ends = (beams.len(), |i: usize| Some(beams[i]));
     local_grid_of(
-        origin,
-        origin_covariance,
+        GridBuffers::default(),
+        (origin, origin_covariance),
         scene_from_camera,
         raster,
         ends,
@@ -51,10 +51,11 @@ pub fn local_grid(
 }
 
 /// [`local_grid`] from `(count, end)`: beam `i < count` ends at `end(i)`,
-/// computed as it is binned ([`LocalGrid::from_ends`]).
+/// computed as it is binned ([`LocalGrid::from_ends_in`]), in the memory of
+/// `buffers`.
 pub fn local_grid_of(
-    origin: &Vector3,
-    origin_covariance: &Matrix3,
+    buffers: GridBuffers,
+    (origin, origin_covariance): (&Vector3, &Matrix3),
     scene_from_camera: &Matrix3,
     raster: Raster,
     ends: (usize, impl Fn(usize) -> Option<BeamEnd> + Sync),
@@ -73,15 +74,14 @@ pub fn local_grid_of(
     } else {
         h_step
     };
-    LocalGrid::from_ends(
-        *origin,
+    let layout = GridLayout {
+        origin: *origin,
         scene_from_grid,
-        angle_axis(raster.horizontal, v_step),
-        angle_axis(raster.vertical, h_step),
+        azimuth: angle_axis(raster.horizontal, v_step),
+        elevation: angle_axis(raster.vertical, h_step),
         max_range,
-        ends,
-        origin_covariance,
-    )
+    };
+    LocalGrid::from_ends_in(buffers, layout, ends, origin_covariance)
 }
 
 #[cfg(test)]

@@ -3,12 +3,22 @@ use rand::{Rng, SeedableRng};
 
 /// A grid of random beams (some bins empty, some with several beams).
 fn random_grid(rng: &mut impl Rng) -> LocalGrid {
+    random_grid_in(GridBuffers::default(), rng, 400, [41, 33])
+}
+
+/// `count` random beams on `bins` (azimuth x elevation) in `buffers`.
+fn random_grid_in(
+    buffers: GridBuffers,
+    rng: &mut impl Rng,
+    count: usize,
+    bins: [usize; 2],
+) -> LocalGrid {
     let axis = |count| Axis {
         start: -0.2,
         step: 0.01,
         count,
     };
-    let ends: Vec<BeamEnd> = (0..400)
+    let ends: Vec<BeamEnd> = (0..count)
         .map(|_| {
             let direction = Vector3::new(
                 1.0,
@@ -27,15 +37,59 @@ fn random_grid(rng: &mut impl Rng) -> LocalGrid {
             }
         })
         .collect();
-    LocalGrid::new(
-        Vector3::zeros(),
-        Matrix3::identity(),
-        axis(41),
-        axis(33),
-        2.0,
-        &ends,
-        &(Matrix3::identity() * 1e-6),
-    )
+    let layout = GridLayout {
+        origin: Vector3::zeros(),
+        scene_from_grid: Matrix3::identity(),
+        azimuth: axis(bins[0]),
+        elevation: axis(bins[1]),
+        max_range: 2.0,
+    };
+    let ends = (ends.len(), |i| Some(ends[i]));
+    LocalGrid::from_ends_in(buffers, layout, ends, &(Matrix3::identity() * 1e-6))
+}
+
+/// Everything a grid answers, bin by bin and tile by tile.
+fn contents(grid: &LocalGrid) -> String {
+    let mut out = format!("{:?} {}\n", grid.beams(), grid.reach());
+    for a in 0..grid.azimuth.count {
+        for e in 0..grid.elevation.count {
+            let (beams, inverse) = grid.bin_beams(a, e);
+            out += &format!(
+                "{a} {e} {beams:?} {inverse:?} {:?} ",
+                grid.bin_surface(a, e)
+            );
+            out += &format!("{:?}\n", grid.bin_summary(a, e));
+        }
+    }
+    for level in 0..grid.levels.len() {
+        let dims = grid.levels[level].dims;
+        for ta in 0..dims[0] {
+            for te in 0..dims[1] {
+                out += &format!("{:?}\n", grid.tile_summary(level, ta, te));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_grid_built_in_another_grids_memory_is_the_same_grid() {
+    // Larger and smaller grids before it, so that every array was longer
+    // or shorter than the new one needs.
+    for (before, after) in [
+        ((900, [60, 50]), (400, [41, 33])),
+        ((50, [9, 7]), (400, [41, 33])),
+        ((400, [41, 33]), (30, [41, 33])),
+    ] {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(31);
+        let fresh = random_grid_in(GridBuffers::default(), &mut rng, after.0, after.1);
+        let mut other = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let old = random_grid_in(GridBuffers::default(), &mut other, before.0, before.1);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(31);
+        let reused = random_grid_in(old.into_buffers(), &mut rng, after.0, after.1);
+        assert_eq!(contents(&reused), contents(&fresh));
+        assert_eq!(reused.levels.len(), fresh.levels.len());
+    }
 }
 
 #[test]
