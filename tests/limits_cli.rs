@@ -80,6 +80,38 @@ fn absurd_sizes_are_refused_before_any_work() {
         &experiment(d, "small_step", step, "horizontal_step_deg = 1e-9"),
         "beams per viewpoint",
     );
+    // A range the uncertainty-aware maps cannot clear: refused by `run` and
+    // by `map` before the simulation (it used to build for ever).
+    let far = experiment(d, "far", "max_range = 2.0", "max_range = 1e300");
+    run(&far, "max_range = 1e300 m");
+    let rays_only = experiment(
+        d,
+        "rays_only",
+        r#"methods = ["blind", "unscented", "ray_update"]"#,
+        r#"methods = ["ray_update"]"#,
+    );
+    let near = experiment(d, "near", "min_range = 0.1", "min_range = 3.0");
+    run(&near, "max_range = 2 must exceed min_range = 3");
+    let far_rays = edited(
+        &rays_only,
+        &d.join("far_rays.toml"),
+        &[("max_range = 2.0", "max_range = 1e4")],
+    );
+    let map = |path: &Path, resolution: &str, says: &str| {
+        let out = d.join("m.bt");
+        let args = [
+            "map",
+            path.to_str().unwrap(),
+            "--method",
+            "unscented",
+            "--resolution",
+            resolution,
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        refused(&args, path.file_name().unwrap().to_str().unwrap(), says);
+    };
+    map(&far_rays, "0.5", "at resolution 0.5 m");
     let mut many = std::fs::read_to_string(experiment(d, "many", "seed = 1", "seed = 1")).unwrap();
     for _ in 0..10_001 {
         many.push_str("\n[[viewpoint]]\njoints = [0.0, -1.2, 1.6, -1.97, -1.5708, 0.0]\n");

@@ -37,6 +37,13 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
             .join(format!("map_{}.bt", args.method))
     });
     check_octree_path(&out)?;
+    if args.method.builds_grids() {
+        // Before the simulation: build_map would refuse the same after it.
+        experiment
+            .scanner
+            .check_clearing(resolution)
+            .map_err(|e| Error::input(&experiment.source, e))?;
+    }
     let bar = progress_bar(experiment.viewpoints.len(), "simulating", args.run.quiet);
     let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))

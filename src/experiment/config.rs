@@ -372,6 +372,9 @@ impl Experiment {
             )));
         }
         crate::eval::ground_truth::check_resolution(&scene, file.resolution)?;
+        if methods.iter().any(|m| m.builds_grids()) {
+            scanner.check_clearing(file.resolution).map_err(bad)?;
+        }
         let mut experiment = Self {
             name: file.name.unwrap_or_else(|| crate::sim::scene::stem(path)),
             description: file.description,

@@ -60,6 +60,12 @@ impl Method {
         Method::RegisteredTruth,
     ];
 
+    /// Whether it builds local grids from propagated beams (the OPDF
+    /// methods), not rays or the truth.
+    pub fn builds_grids(self) -> bool {
+        !matches!(self, Method::RayUpdate | Method::RegisteredTruth)
+    }
+
     /// Its name in files and on the command line.
     pub fn as_str(self) -> &'static str {
         match self {
@@ -257,6 +263,11 @@ pub fn build_map_measured(
 ) -> Result<Octree> {
     if method == Method::RegisteredTruth {
         return Err(Error::Usage(REGISTERED_TRUTH_FROM_SCANS.into()));
+    }
+    if method.builds_grids() {
+        view.scanner
+            .check_clearing(resolution)
+            .map_err(|e| Error::Usage(format!("method {method}: {e}")))?;
     }
     let mut tree = Octree::new(resolution);
     let max_range = view.scanner.max_range;

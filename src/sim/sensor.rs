@@ -50,6 +50,12 @@ pub struct Scanner {
 /// and local grids no longer fit in a workstation's memory.
 pub const MAX_BEAMS_PER_VIEWPOINT: f64 = 4_000_000.0;
 
+/// Most finest cells the boundary of one viewpoint's cleared space may hold
+/// ([`Scanner::check_clearing`]): the uncertainty-aware merge evaluates each
+/// (about a microsecond and tens of bytes apiece), so beyond this one map
+/// takes minutes and gigabytes.
+pub const MAX_CLEARED_BOUNDARY_CELLS: f64 = 1e8;
+
 /// How many angles `angles` gives (as a float, so that absurd steps are
 /// caught before anything is allocated).
 fn angle_count(fov_deg: f64, step_deg: f64) -> f64 {
@@ -88,7 +94,7 @@ impl ScannerSpec {
             ),
             ("vertical_step_deg", v_step, v_step > 0.0),
             ("min_range", self.min_range, self.min_range >= 0.0),
-            ("max_range", self.max_range, self.max_range > self.min_range),
+            ("max_range", self.max_range, self.max_range > 0.0),
         ];
         for (name, value, ok) in checks {
             if !value.is_finite() || !ok {
@@ -97,6 +103,12 @@ impl ScannerSpec {
                      positive steps, 0 <= min_range < max_range)"
                 ));
             }
+        }
+        if self.max_range <= self.min_range {
+            return Err(format!(
+                "[sensor] max_range = {} must exceed min_range = {}",
+                self.max_range, self.min_range
+            ));
         }
         let rows = if self.vertical_fov_deg == 0.0 {
             1.0
@@ -133,6 +145,52 @@ impl ScannerSpec {
             min_range: self.min_range,
             max_range: self.max_range,
         })
+    }
+}
+
+impl Scanner {
+    /// The finest cells of edge `resolution` on the boundary of the space one
+    /// viewpoint clears when none of its beams returns. The boundary is the
+    /// surface of the field of view's pyramid out to the maximum range R
+    /// (half-angles α, β of the outermost columns and rows), of area `A = R²
+    /// (4 tan α tan β + 2 tan α / cos β + 2 tan β / cos α)`; the cells whose
+    /// circumscribed ball (radius √3/2 of an edge) meets it fill a layer √3
+    /// edges thick: `√3 A / resolution²` cells. Inside, free space is updated
+    /// a whole node at a time; these cells one by one.
+    pub fn cleared_boundary_cells(&self, resolution: f64) -> f64 {
+        let half_angle = |angles: &[f64]| angles.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+        let (alpha, beta) = (
+            half_angle(&self.horizontal_angles),
+            half_angle(&self.vertical_angles),
+        );
+        let area = self.max_range.powi(2)
+            * (4.0 * alpha.tan() * beta.tan()
+                + 2.0 * alpha.tan() / beta.cos()
+                + 2.0 * beta.tan() / alpha.cos());
+        3f64.sqrt() * area / (resolution * resolution)
+    }
+
+    /// Checks that a map of `resolution` can be built from this scanner by
+    /// the uncertainty-aware methods: at most
+    /// [`MAX_CLEARED_BOUNDARY_CELLS`] cells on the boundary of a viewpoint's
+    /// cleared space ([`Scanner::cleared_boundary_cells`]).
+    pub fn check_clearing(&self, resolution: f64) -> Result<(), String> {
+        let cells = self.cleared_boundary_cells(resolution);
+        if cells <= MAX_CLEARED_BOUNDARY_CELLS {
+            return Ok(());
+        }
+        let range = self.max_range;
+        let range = if range < 1e6 {
+            format!("{range}")
+        } else {
+            format!("{range:e}")
+        };
+        Err(format!(
+            "[sensor] max_range = {range} m at resolution {resolution} m: a viewpoint whose beams \
+             all miss clears space bounded by {cells:.2e} cells, which the uncertainty-aware \
+             methods evaluate one by one; sigmap handles at most \
+             {MAX_CLEARED_BOUNDARY_CELLS:.0e} (lower max_range or use a coarser resolution)"
+        ))
     }
 }
 
