@@ -277,7 +277,7 @@ impl LocalGrid {
     /// [`LocalGrid::from_ends`] in the memory of `buffers` (from
     /// [`LocalGrid::into_buffers`]); the grid is the same.
     pub fn from_ends_in(
-        mut buffers: GridBuffers,
+        buffers: GridBuffers,
         layout: GridLayout,
         (count, end): (usize, impl Fn(usize) -> Option<BeamEnd> + Sync),
         origin_covariance: &Matrix3,
@@ -306,7 +306,7 @@ impl LocalGrid {
             mut inverse,
             surfaces,
             levels,
-        } = std::mem::take(&mut buffers);
+        } = buffers;
         (0..count)
             .into_par_iter()
             .map(|i| {
@@ -377,7 +377,7 @@ impl LocalGrid {
             .par_iter()
             .map(|b| b.direction.map(|c| 1.0 / c))
             .collect_into_vec(&mut inverse);
-        buffers = GridBuffers {
+        let spare = GridBuffers {
             bin_of,
             unbinned,
             next,
@@ -398,7 +398,7 @@ impl LocalGrid {
             inverse,
             surfaces,
             levels: Vec::new(),
-            spare: buffers,
+            spare,
         };
         grid.build_surfaces();
         grid.build_pyramid(levels);
