@@ -212,13 +212,26 @@ pub fn measured_points(view: &MapperView, scan: &Scan) -> Vec<Option<UncertainPo
     let range = view.range;
     let hit = |m: &Measurement| (m.status == BeamStatus::Hit).then_some(m.range);
     let ranges: Vec<Option<f64>> = scan.measurements.iter().map(hit).collect();
-    let pooled = pool_ranges(view.scanner.columns, directions, &ranges, |r| {
-        range.sigma(r)
-    });
+    let angular_sigma = range.angular_sigma;
+    let pooled = pool_ranges(
+        view.scanner.columns,
+        directions,
+        &ranges,
+        |r| range.sigma(r),
+        angular_sigma,
+    );
     pooled
         .iter()
         .zip(directions)
-        .map(|(p, d)| p.map(|(r, sigma)| camera_point(range, d, r, sigma)))
+        .map(|(p, d)| {
+            p.map(|p| match p.covariance(d, angular_sigma) {
+                Some(covariance) => UncertainPoint {
+                    mean: d * p.range,
+                    covariance,
+                },
+                None => camera_point(range, d, p.range, p.sigma),
+            })
+        })
         .collect()
 }
 

@@ -2,25 +2,38 @@
 //!
 //! The range noise of neighbouring beams is independent while the surface
 //! they hit is (locally) one plane: a least-squares plane through a beam's
-//! 3×3 raster neighbourhood, with points more than 3σ off the plane
-//! rejected, estimates where the beam met the surface with variance
-//! ≈ σ²/n instead of σ². A beam whose own range disagrees with the plane (an
+//! 3×3 raster neighbourhood estimates where the beam's line meets the
+//! surface with variance ≈ σ²/n instead of σ², when the neighbourhood is one
+//! plane plus noise. A beam whose own range disagrees with the plane (an
 //! edge, a second surface) keeps its measurement.
 
 use crate::geometry::{Matrix3, Vector3};
 
-/// A beam's pooled range and its standard deviation (m), or `None` for a
-/// beam without a hit.
-pub type Pooled = Option<(f64, f64)>;
+/// A beam's pooled range, its standard deviation (m) and the normal of the
+/// plane it was pooled on (`None`: the raw range was kept).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PooledRange {
+    /// Where the beam's line meets the surface (m).
+    pub range: f64,
+    /// The standard deviation of `range` (m).
+    pub sigma: f64,
+    /// The unit normal of the fitted plane, if pooled.
+    pub normal: Option<Vector3>,
+}
+
+/// A beam's [`PooledRange`], or `None` for a beam without a hit.
+pub type Pooled = Option<PooledRange>;
 
 /// Pools the hits of one viewpoint. `ranges[k]` is beam k's measured range
 /// (`None`: no hit), `directions[k]` its unit direction, beams row by row
-/// with `columns` per row; `sigma(r)` is the range noise at range r.
+/// with `columns` per row; `sigma(r)` is the range noise at range r and
+/// `angular_sigma` the beams' direction noise (rad).
 pub fn pool_ranges(
     columns: usize,
     directions: &[Vector3],
     ranges: &[Option<f64>],
     sigma: impl Fn(f64) -> f64,
+    angular_sigma: f64,
 ) -> Vec<Pooled> {
     let rows = ranges.len() / columns.max(1);
     let mut out = Vec::with_capacity(ranges.len());
@@ -44,6 +57,7 @@ pub fn pool_ranges(
                     points.push(Neighbour {
                         point: directions[j] * rj,
                         sigma: sigma(rj),
+                        lateral: rj * angular_sigma,
                         direction: directions[j],
                     });
                 }
@@ -54,29 +68,59 @@ pub fn pool_ranges(
     out
 }
 
+impl PooledRange {
+    /// The camera-frame covariance of a pooled beam's point `d · range` as an
+    /// estimate of where the beam, drawn off `d` by its direction noise
+    /// `angular_sigma`, met the surface (§5.5); `None` for a raw range (the
+    /// sensor's `σ² d dᵀ + r² σ_a² (I − d dᵀ)`). On a plane with normal n the
+    /// beam's true hit slides along the plane, `r P δ` with
+    /// `P = I − d nᵀ / (n·d)`, so the lateral term becomes
+    /// `r² σ_a² P (I − d dᵀ) Pᵀ`: a slanted plane turns direction noise into
+    /// range error (`r σ_a tan θ` along the beam), which the raw range
+    /// already holds and the plane's prediction does not.
+    pub fn covariance(&self, d: &Vector3, angular_sigma: f64) -> Option<Matrix3> {
+        let n = self.normal?;
+        let ddt = d * d.transpose();
+        let slide = Matrix3::identity() - d * n.transpose() / n.dot(d);
+        let lateral = slide * (Matrix3::identity() - ddt) * slide.transpose();
+        let r = self.range;
+        Some(ddt * (self.sigma * self.sigma) + lateral * (r * r * angular_sigma * angular_sigma))
+    }
+}
+
 /// χ² 99% quantiles for 1–6 degrees of freedom: a neighbourhood is one
 /// plane plus noise only if its residuals pass this test.
 const CHI2_99: [f64; 6] = [6.635, 9.210, 11.345, 13.277, 15.086, 16.812];
 
-/// The pooled (range, σ) of a beam along `direction` measured at `r`, from
-/// the points of its neighbourhood (itself included). Only a neighbourhood
-/// that is one plane plus noise (χ² test of the residuals at 99%, at least
-/// 5 points) is pooled; anything else (an edge, a second surface, a corner)
-/// keeps the raw range. Dropping points until the test passes would bias
-/// the variance; refusing does not.
-fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> (f64, f64) {
-    let raw = (r, sigma);
+/// The pooled range of a beam along `direction` measured at `r` (range
+/// noise `sigma`), from the points of its neighbourhood (itself included).
+/// Only a neighbourhood that is one plane plus noise (χ² test of the
+/// residuals at 99%, at least 5 points) is pooled; anything else (an edge, a
+/// second surface, a corner) keeps the raw range. Dropping points until the
+/// test passes would bias the variance; refusing does not.
+fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> PooledRange {
+    let raw = PooledRange {
+        range: r,
+        sigma,
+        normal: None,
+    };
     if points.len() < 5 {
         return raw;
     }
     let Some(plane) = fit_plane(points.iter().map(|p| p.point)) else {
         return raw;
     };
-    // Each point's range noise, seen along the plane's normal.
-    let normal_sigma = |p: &Neighbour| p.sigma * plane.normal.dot(&p.direction).abs();
+    // Each point's noise along the plane's normal: its range noise, and its
+    // direction noise moving it sideways, off a slanted plane.
+    let normal_variance_of = |p: &Neighbour| {
+        let along = plane.normal.dot(&p.direction);
+        (p.sigma * along).powi(2) + p.lateral.powi(2) * (1.0 - along * along).max(0.0)
+    };
     let chi2: f64 = points
         .iter()
-        .map(|p| (plane.distance(&p.point) / normal_sigma(p).max(1e-3 * p.sigma)).powi(2))
+        .map(|p| {
+            plane.distance(&p.point).powi(2) / normal_variance_of(p).max((1e-3 * p.sigma).powi(2))
+        })
         .sum();
     if chi2 > CHI2_99[points.len() - 4] {
         return raw;
@@ -93,7 +137,7 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> (f
     // Regression prediction variance of the plane at the beam's crossing,
     // along the normal, then along the beam.
     let n = points.len() as f64;
-    let normal_variance = points.iter().map(|p| normal_sigma(p).powi(2)).sum::<f64>() / n;
+    let normal_variance = points.iter().map(normal_variance_of).sum::<f64>() / n;
     let offset = direction * pooled - plane.centroid;
     let spread = plane
         .in_plane
@@ -101,14 +145,20 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> (f
         .map(|(axis, scatter)| offset.dot(axis).powi(2) / scatter)
         .sum::<f64>();
     let variance = normal_variance * (1.0 / n + spread) / (along * along);
-    (pooled, variance.sqrt())
+    PooledRange {
+        range: pooled,
+        sigma: variance.sqrt(),
+        normal: Some(plane.normal),
+    }
 }
 
-/// A hit of the neighbourhood: its camera-frame point, range noise and
-/// beam direction.
+/// A hit of the neighbourhood: its camera-frame point, range noise, the
+/// sideways noise its direction noise gives it at its range (`r σ_a`), and
+/// its beam direction.
 struct Neighbour {
     point: Vector3,
     sigma: f64,
+    lateral: f64,
     direction: Vector3,
 }
 
