@@ -90,6 +90,21 @@ fn absurd_sizes_are_refused_before_any_work() {
         r#"methods = ["blind", "unscented", "ray_update"]"#,
         r#"methods = ["ray_update"]"#,
     );
+    // A sigma-point set the scaled transform is not defined for.
+    for (table, says) in [
+        ("alpha = 0.0", "[unscented] alpha = 0 must be above 0"),
+        (
+            "alpha = 0.5\nbeta = -1.0",
+            "[unscented] beta = -1 must be at least 0",
+        ),
+        (
+            "alpha = 0.5\nkappa = nan",
+            "[unscented] kappa = NaN must be at least 0",
+        ),
+    ] {
+        let table = format!("[unscented]\n{table}\n\n[robot]");
+        run(&experiment(d, "sigma_set", "[robot]", &table), says);
+    }
     let near = experiment(d, "near", "min_range = 0.1", "min_range = 3.0");
     run(&near, "max_range = 2 must exceed min_range = 3");
     let far_rays = edited(

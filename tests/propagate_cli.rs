@@ -210,3 +210,57 @@ fn bad_chain_files_exit_2() {
     let out = sigmap(&["propagate", "nope.toml", "--point", "1,2"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn the_scaled_sigma_point_set_is_offered_on_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("chain.toml");
+    std::fs::write(&path, CHAIN).unwrap();
+    let p = path.to_str().unwrap();
+    let propagate = |extra: &[&str]| {
+        let mut args = vec![
+            "propagate",
+            p,
+            "--samples",
+            "20000",
+            "--seed",
+            "3",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        json(&sigmap(&args))
+    };
+    let unscented = |v: &serde_json::Value| matrix(&v["methods"]["unscented"]["covariance"]);
+    let paper = propagate(&[]);
+    // α = 1, β = κ = 0 is the paper's set plus a centre point of weight 0.
+    let same = propagate(&["--alpha", "1", "--beta", "0"]);
+    assert_eq!(same["sigma_points"], 43);
+    assert_eq!(unscented(&same), unscented(&paper));
+    // α = 0.5, β = 2: another set, still within 5 Monte Carlo standard
+    // errors of the reference on this mildly nonlinear chain.
+    let narrow = propagate(&["--alpha", "0.5"]);
+    assert_ne!(unscented(&narrow), unscented(&paper));
+    let mc = matrix(&narrow["methods"]["monte_carlo"]["covariance"]);
+    let se = (2.0f64 / 19_999.0).sqrt();
+    for (i, (ut_row, mc_row)) in unscented(&narrow).iter().zip(&mc).enumerate() {
+        let ratio = ut_row[i] / mc_row[i];
+        assert!(
+            (ratio - 1.0).abs() < 5.0 * se,
+            "variance {i}: ratio {ratio}"
+        );
+    }
+    // Out of its bounds, or β without α: exit 2.
+    for bad in [
+        &["--alpha", "0"][..],
+        &["--alpha", "0.5", "--kappa=-1"],
+        &["--beta", "1"],
+    ] {
+        let mut args = vec!["propagate", p];
+        args.extend_from_slice(bad);
+        let out = sigmap(&args);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}");
+    }
+    let out = sigmap(&["propagate", p, "--alpha", "0"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("--alpha = 0 must be above 0"), "{stderr}");
+}

@@ -481,3 +481,68 @@ fn octomap_settings_are_swept_from_the_experiment_file() {
         "{stderr}"
     );
 }
+
+#[test]
+fn the_scaled_sigma_point_set_is_taken_from_the_experiment_file_and_swept() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = portable_quickstart().replace("seeds = [1, 2, 3]", "seeds = [2]");
+    let plain = dir.path().join("plain.toml");
+    std::fs::write(&plain, &base).unwrap();
+    // α = 1 with β = κ = 0 is the paper's set; α = 0.5 (β = 2 by default)
+    // is another set.
+    let scaled_text = base.replacen(
+        "[robot]",
+        "[unscented]\nalpha = 1.0\nbeta = 0.0\n\n\
+         [[sweep]]\nfield = \"experiment.unscented.alpha\"\nvalues = [1.0, 0.5]\n\n[robot]",
+        1,
+    );
+    let scaled = dir.path().join("scaled.toml");
+    std::fs::write(&scaled, &scaled_text).unwrap();
+    let rows = |file: &std::path::Path, out: &str| -> Vec<RunRow> {
+        let out = dir.path().join(out);
+        sigmap_ok(&[
+            "run",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+        ]);
+        csv::Reader::from_path(out.join("runs.csv"))
+            .unwrap()
+            .deserialize()
+            .map(|r| r.unwrap())
+            .collect()
+    };
+    let plain = rows(&plain, "plain");
+    let scaled = rows(&scaled, "scaled");
+    let strip = |r: &RunRow| {
+        format!(
+            "{:?}",
+            RunRow {
+                cell: String::new(),
+                ..r.clone()
+            }
+        )
+    };
+    // Methods in file order: blind, unscented, ray_update per cell.
+    assert_eq!(scaled.len(), 6);
+    assert_eq!(scaled[1].method, "unscented");
+    for i in 0..3 {
+        assert_eq!(
+            strip(&scaled[i]),
+            strip(&plain[i]),
+            "the paper's set, row {i}"
+        );
+    }
+    assert_eq!(scaled[4].cell, "experiment.unscented.alpha=0.5");
+    assert_eq!(strip(&scaled[3]), strip(&plain[0]), "blind ignores the set");
+    assert_eq!(
+        strip(&scaled[5]),
+        strip(&plain[2]),
+        "the ray update ignores it"
+    );
+    assert!(
+        scaled[4].get("anees") != plain[1].get("anees"),
+        "the unscented rows change with the set"
+    );
+}

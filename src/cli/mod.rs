@@ -297,6 +297,16 @@ pub(crate) struct PropagateArgs {
     /// `[point]` mean (its covariance is kept; zero if the file has none).
     #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
     point: Option<[f64; 3]>,
+    /// The unscented transform with the scaled sigma-point set of this α
+    /// (docs/math.md §3.2) instead of the paper's set.
+    #[arg(long)]
+    alpha: Option<f64>,
+    /// The scaled set's β (with --alpha; 2 is optimal for Gaussian inputs).
+    #[arg(long, requires = "alpha", default_value_t = crate::uncertainty::unscented::DEFAULT_BETA)]
+    beta: f64,
+    /// The scaled set's κ (with --alpha).
+    #[arg(long, requires = "alpha", default_value_t = 0.0)]
+    kappa: f64,
     /// Monte Carlo draws.
     #[arg(long, default_value_t = 10_000)]
     samples: usize,

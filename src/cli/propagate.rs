@@ -4,7 +4,7 @@ use super::PropagateArgs;
 use crate::error::{Error, Result};
 use crate::experiment::figures::write_propagation_sweep;
 use crate::uncertainty::compare::{compare, log_space, sweep, MethodResult};
-use crate::uncertainty::{read_chain_file, UncertainPoint};
+use crate::uncertainty::{read_chain_file, SigmaSet, UncertainPoint};
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -37,12 +37,18 @@ pub(crate) fn run(args: PropagateArgs) -> Result<()> {
             args.samples
         )));
     }
+    let sigma_set = match args.alpha {
+        Some(alpha) => SigmaSet::scaled(alpha, args.beta, args.kappa)
+            .map_err(|e| Error::Usage(format!("--{e}")))?,
+        None => SigmaSet::Paper,
+    };
     if args.sweep {
-        return run_sweep(&args, &chain, &point);
+        return run_sweep(&args, &chain, &point, sigma_set);
     }
     let comparison = compare(
         &chain,
         &point,
+        sigma_set,
         args.samples,
         args.seed,
         Duration::from_millis(20),
@@ -91,6 +97,7 @@ fn run_sweep(
     args: &PropagateArgs,
     chain: &crate::uncertainty::UncertainChain,
     point: &UncertainPoint,
+    sigma_set: SigmaSet,
 ) -> Result<()> {
     if !(2..=1000).contains(&args.sweep_points) {
         return Err(Error::Usage(format!(
@@ -110,6 +117,7 @@ fn run_sweep(
     let rows = sweep(
         chain,
         point,
+        sigma_set,
         &log_space(0.001, 0.2, args.sweep_points),
         args.samples,
         args.seed,

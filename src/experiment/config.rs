@@ -10,6 +10,7 @@ use crate::sim::robot::{KinematicChain, Robot};
 use crate::sim::scene::Scene;
 use crate::sim::sensor::{Scanner, ScannerSpec};
 use crate::sim::streams::{Stream, Streams};
+use crate::uncertainty::SigmaSet;
 use nalgebra::Unit;
 use rand::Rng;
 use serde::Deserialize;
@@ -35,6 +36,8 @@ struct ExperimentFile {
     /// `[map]`: each setting may be swept as `experiment.map.<name>` once set.
     #[serde(default)]
     map: MapProbabilities,
+    /// `[unscented]`: the scaled sigma-point set instead of the paper's.
+    unscented: Option<ScaledSetSpec>,
     seeds: Option<Vec<u64>>,
     methods: Option<Vec<String>>,
     robot: MountSpec,
@@ -130,6 +133,22 @@ struct PoseSpec {
     rpy: [f64; 3],
 }
 
+/// `[unscented]`: the Wan–van der Merwe scaled set (docs/math.md §3.2) for
+/// the `unscented` and `correlated` methods.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ScaledSetSpec {
+    alpha: f64,
+    #[serde(default = "default_beta")]
+    beta: f64,
+    #[serde(default)]
+    kappa: f64,
+}
+
+fn default_beta() -> f64 {
+    crate::uncertainty::unscented::DEFAULT_BETA
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ViewpointSpec {
@@ -168,6 +187,10 @@ pub struct Experiment {
     /// absent; docs/math.md §5.4), and beam pooling (`beam_pooling = true`;
     /// §5.5). Defaults: OctoMap's and the paper's values.
     pub map: MapSettings,
+    /// The sigma-point set of the `unscented` and `correlated` methods: the
+    /// paper's, or the scaled set of an `[unscented]` table (docs/math.md
+    /// §3.2).
+    pub sigma_set: SigmaSet,
     /// The seeds of `sigmap run` (`seeds = [..]`, default `[seed]`).
     pub seeds: Vec<u64>,
     /// The modelling methods compared by `sigmap run`
@@ -333,6 +356,11 @@ impl Experiment {
             )));
         }
         let map = MapSettings::new(&file.map, file.risk, file.beam_pooling).map_err(&bad)?;
+        let sigma_set = match &file.unscented {
+            Some(spec) => SigmaSet::scaled(spec.alpha, spec.beta, spec.kappa)
+                .map_err(|e| bad(format!("[unscented] {e}")))?,
+            None => SigmaSet::Paper,
+        };
         let seeds = file.seeds.clone().unwrap_or_else(|| vec![file.seed]);
         if seeds.is_empty() {
             return Err(bad("`seeds` is empty".into()));
@@ -383,6 +411,7 @@ impl Experiment {
             resolution: file.resolution,
             grid_offset: file.grid_offset,
             map,
+            sigma_set,
             seeds,
             methods,
             scene,

@@ -117,6 +117,8 @@ pub struct MapperView<'a> {
     pub range: &'a RangeModel,
     /// How maps are built and fused.
     pub settings: &'a MapSettings,
+    /// The sigma-point set of the `unscented` and `correlated` methods.
+    pub sigma_set: SigmaSet,
 }
 
 impl<'a> MapperView<'a> {
@@ -126,19 +128,25 @@ impl<'a> MapperView<'a> {
             scanner: &experiment.scanner,
             range: &experiment.profile.range,
             settings: &experiment.map,
+            sigma_set: experiment.sigma_set,
         }
     }
 }
 
 /// The propagator of an OPDF method for one viewpoint's chain: the
 /// per-point marginal (for `correlated`, the full covariance, as its
-/// consistency is checked); `None` for the ray update, which propagates nothing.
-pub fn propagator(method: Method, chain: &UncertainChain) -> Option<Box<dyn Propagator>> {
+/// consistency is checked), sigma-point methods with `sigma_set`; `None` for
+/// the ray update, which propagates nothing.
+pub fn propagator(
+    method: Method,
+    chain: &UncertainChain,
+    sigma_set: SigmaSet,
+) -> Option<Box<dyn Propagator>> {
     match method {
         Method::Blind => Some(Box::new(BlindPropagator::new(chain))),
         Method::Jacobian => Some(Box::new(JacobianPropagator::new(chain))),
         Method::Unscented | Method::Correlated => {
-            Some(Box::new(UnscentedPropagator::new(chain, SigmaSet::Paper)))
+            Some(Box::new(UnscentedPropagator::new(chain, sigma_set)))
         }
         Method::RayUpdate | Method::RegisteredTruth => None,
     }
@@ -329,7 +337,8 @@ pub fn build_map_measured(
         } else {
             full_chain
         };
-        let propagator = propagator(method, &chain).expect("an OPDF method has a propagator");
+        let propagator =
+            propagator(method, &chain, view.sigma_set).expect("an OPDF method has a propagator");
         let origin = propagator.origin();
         // Each beam's end is computed as it is binned: without pooling its
         // measured point too, so neither is ever held for the whole scan.
@@ -635,5 +644,40 @@ mod tests {
             "{narrowed} of {} hits pooled",
             pooled.len()
         );
+    }
+
+    #[test]
+    fn the_experiments_sigma_set_reaches_the_maps() {
+        let mut experiment = quickstart();
+        let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+        let map = |e: &Experiment, method| {
+            let tree = build_map(
+                &MapperView::of(e),
+                &run.scans,
+                method,
+                0.02,
+                &Vector3::zeros(),
+            );
+            crate::mapping::octomap_io::to_ot(&tree.unwrap())
+        };
+        let paper = map(&experiment, Method::Unscented);
+        let blind = map(&experiment, Method::Blind);
+        // α = 1, β = κ = 0 is the paper's set: λ = 0, the same spread √n
+        // and weights 1/2n, a centre point of weight 0.
+        experiment.sigma_set = SigmaSet::Scaled {
+            alpha: 1.0,
+            beta: 0.0,
+            kappa: 0.0,
+        };
+        assert!(map(&experiment, Method::Unscented) == paper);
+        // A narrower set with β = 2 weighs the centre point: another map,
+        // and only for the sigma-point methods.
+        experiment.sigma_set = SigmaSet::Scaled {
+            alpha: 0.5,
+            beta: 2.0,
+            kappa: 0.0,
+        };
+        assert!(map(&experiment, Method::Unscented) != paper);
+        assert!(map(&experiment, Method::Blind) == blind);
     }
 }

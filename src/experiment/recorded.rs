@@ -31,7 +31,7 @@ use crate::mapping::settings::MapSettings;
 use crate::mapping::spherical::{spherical, Axis, BeamEnd, LocalGrid};
 use crate::sim::profile::{ArmError, ErrorProfile};
 use crate::sim::sensor::{RangeModel, MAX_BEAMS_PER_VIEWPOINT};
-use crate::uncertainty::{UncertainChain, UncertainPoint, UncertainPose};
+use crate::uncertainty::{SigmaSet, UncertainChain, UncertainPoint, UncertainPose};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -143,7 +143,10 @@ pub fn map_recorded(
         } else {
             full_chain.clone()
         };
-        let propagator = propagator(options.method, &chain).expect("an OPDF method");
+        // Recorded scans come with a profile, not an experiment: the
+        // paper's sigma-point set.
+        let propagator =
+            propagator(options.method, &chain, SigmaSet::Paper).expect("an OPDF method");
         let origin = propagator.origin();
         let map_from_sensor = chain.nominal().rotation.to_rotation_matrix().into_inner();
         for (sensor_from_grid, members) in grid_frames(&node.points) {

@@ -132,7 +132,7 @@ pub fn run_seed(
         // viewpoint share its pose error: the χ² bounds do not apply here.
         let mut pairs = Vec::new();
         for ((scan, truth), points) in run.scans.iter().zip(&run.truth.scans).zip(&measured) {
-            if let Some(p) = propagator(method, &scan_chain(scan)) {
+            if let Some(p) = propagator(method, &scan_chain(scan), experiment.sigma_set) {
                 pairs.extend(errors_against_truth(truth, points, p.as_ref()));
             }
         }

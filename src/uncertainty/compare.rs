@@ -28,7 +28,8 @@ pub struct MethodResult {
 /// All four methods, keyed by name in a fixed order.
 #[derive(Clone, Debug, Serialize)]
 pub struct Comparison {
-    /// Sigma points of the unscented transform (2n).
+    /// Sigma points of the unscented transform (2n; 2n + 1 for the scaled
+    /// set).
     pub sigma_points: usize,
     /// Monte Carlo draws.
     pub samples: usize,
@@ -45,7 +46,8 @@ pub struct Methods {
     pub blind: MethodResult,
     /// First order.
     pub jacobian: MethodResult,
-    /// The paper's 2n sigma points.
+    /// The unscented transform: the paper's 2n sigma points, or the scaled
+    /// set (`--alpha`).
     pub unscented: MethodResult,
     /// The reference.
     pub monte_carlo: MethodResult,
@@ -84,11 +86,13 @@ fn run(
     result(&g, micros, setup_micros)
 }
 
-/// Runs the four methods (`samples` Monte Carlo draws from `seed`), timing
-/// each for about `budget` (zero: a single run each).
+/// Runs the four methods (`samples` Monte Carlo draws from `seed`; the
+/// unscented transform with `sigma_set`), timing each for about `budget`
+/// (zero: a single run each).
 pub fn compare(
     chain: &UncertainChain,
     point: &UncertainPoint,
+    sigma_set: SigmaSet,
     samples: usize,
     seed: u64,
     budget: Duration,
@@ -102,9 +106,9 @@ pub fn compare(
     let jacobian_setup = setup(&mut || {
         black_box(JacobianPropagator::new(chain));
     });
-    let unscented = UnscentedPropagator::new(chain, SigmaSet::Paper);
+    let unscented = UnscentedPropagator::new(chain, sigma_set);
     let unscented_setup = setup(&mut || {
-        black_box(UnscentedPropagator::new(chain, SigmaSet::Paper));
+        black_box(UnscentedPropagator::new(chain, sigma_set));
     });
     let mc = MonteCarloPropagator::new(chain, samples, seed);
     let start = Instant::now();
@@ -159,10 +163,12 @@ pub fn with_rotation_sigma(chain: &UncertainChain, sigma: f64) -> UncertainChain
 }
 
 /// The paper's comparison on one chain: for each rotation sigma, each
-/// method's covariance error against a Monte Carlo reference of `samples` draws.
+/// method's covariance error against a Monte Carlo reference of `samples`
+/// draws (the unscented transform with `sigma_set`).
 pub fn sweep(
     chain: &UncertainChain,
     point: &UncertainPoint,
+    sigma_set: SigmaSet,
     sigmas: &[f64],
     samples: usize,
     seed: u64,
@@ -176,7 +182,7 @@ pub fn sweep(
             ("jacobian", JacobianPropagator::new(&chain).propagate(point)),
             (
                 "unscented",
-                UnscentedPropagator::new(&chain, SigmaSet::Paper).propagate(point),
+                UnscentedPropagator::new(&chain, sigma_set).propagate(point),
             ),
         ];
         for (method, g) in methods {

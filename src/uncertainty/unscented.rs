@@ -38,7 +38,29 @@ struct Weights {
     w0c: f64,
 }
 
+/// The scaled set's β when none is given: 2, optimal for Gaussian inputs
+/// (Wan–van der Merwe).
+pub const DEFAULT_BETA: f64 = 2.0;
+
 impl SigmaSet {
+    /// The scaled set, checked: `0 < α ≤ 10`, `0 ≤ β ≤ 100`, `0 ≤ κ ≤ 100`
+    /// (κ ≥ 0 keeps `n + κ > 0` whatever the chain's n). The error names the
+    /// parameter and its bounds.
+    pub fn scaled(alpha: f64, beta: f64, kappa: f64) -> Result<Self, String> {
+        for (name, value, low_open, high) in [
+            ("alpha", alpha, true, 10.0),
+            ("beta", beta, false, 100.0),
+            ("kappa", kappa, false, 100.0),
+        ] {
+            let above = if low_open { value > 0.0 } else { value >= 0.0 };
+            if !(value.is_finite() && above && value <= high) {
+                let low = if low_open { "above 0" } else { "at least 0" };
+                return Err(format!("{name} = {value} must be {low} and at most {high}"));
+            }
+        }
+        Ok(SigmaSet::Scaled { alpha, beta, kappa })
+    }
+
     fn weights(self, n: usize) -> Weights {
         let n = n as f64;
         match self {
