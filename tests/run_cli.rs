@@ -394,6 +394,33 @@ fn a_resume_refuses_results_of_other_inputs() {
     }
 }
 
+/// `sigmap run FILE --out OUT -q`, and its `runs.csv` rows.
+fn run_rows(file: &std::path::Path, out: &std::path::Path) -> Vec<RunRow> {
+    sigmap_ok(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    csv::Reader::from_path(out.join("runs.csv"))
+        .unwrap()
+        .deserialize()
+        .map(|r| r.unwrap())
+        .collect()
+}
+
+/// A row as text without its sweep cell, to compare rows of different cells.
+fn without_cell(r: &RunRow) -> String {
+    format!(
+        "{:?}",
+        RunRow {
+            cell: String::new(),
+            ..r.clone()
+        }
+    )
+}
+
 #[test]
 fn octomap_settings_are_swept_from_the_experiment_file() {
     let dir = tempfile::tempdir().unwrap();
@@ -415,43 +442,20 @@ fn octomap_settings_are_swept_from_the_experiment_file() {
     );
     let sweep = dir.path().join("sweep.toml");
     std::fs::write(&sweep, &swept_text).unwrap();
-    let rows = |file: &std::path::Path, out: &str| -> Vec<RunRow> {
-        let out = dir.path().join(out);
-        sigmap_ok(&[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "-q",
-        ]);
-        csv::Reader::from_path(out.join("runs.csv"))
-            .unwrap()
-            .deserialize()
-            .map(|r| r.unwrap())
-            .collect()
-    };
+    let rows = |file: &std::path::Path, out: &str| run_rows(file, &dir.path().join(out));
     let plain = rows(&plain, "plain");
     let swept = rows(&sweep, "swept");
     assert_eq!(swept.len(), 4);
-    let strip = |r: &RunRow| {
-        format!(
-            "{:?}",
-            RunRow {
-                cell: String::new(),
-                ..r.clone()
-            }
-        )
-    };
     // OctoMap's defaults given explicitly: the same maps bit for bit.
     assert_eq!(swept[0].cell, "experiment.map.prob_hit=0.7");
-    assert_eq!(strip(&swept[0]), strip(&plain[0]));
-    assert_eq!(strip(&swept[1]), strip(&plain[1]));
+    assert_eq!(without_cell(&swept[0]), without_cell(&plain[0]));
+    assert_eq!(without_cell(&swept[1]), without_cell(&plain[1]));
     // A weaker hit (0.55: +0.2 log-odds, below one miss) changes the ray
     // update only: surface cells crossed by other beams turn free.
     assert_eq!(swept[2].cell, "experiment.map.prob_hit=0.55");
     assert_eq!(
-        strip(&swept[2]),
-        strip(&plain[0]),
+        without_cell(&swept[2]),
+        without_cell(&plain[0]),
         "the OPDF merge ignores it"
     );
     assert_eq!(swept[3].method, "ray_update");
@@ -488,8 +492,8 @@ fn the_scaled_sigma_point_set_is_taken_from_the_experiment_file_and_swept() {
     let base = portable_quickstart().replace("seeds = [1, 2, 3]", "seeds = [2]");
     let plain = dir.path().join("plain.toml");
     std::fs::write(&plain, &base).unwrap();
-    // α = 1 with β = κ = 0 is the paper's set; α = 0.5 (β = 2 by default)
-    // is another set.
+    // α = 1 with β = κ = 0 is the paper's set; α = 0.5 (β = 0 as set) is
+    // another set.
     let scaled_text = base.replacen(
         "[robot]",
         "[unscented]\nalpha = 1.0\nbeta = 0.0\n\n\
@@ -498,47 +502,28 @@ fn the_scaled_sigma_point_set_is_taken_from_the_experiment_file_and_swept() {
     );
     let scaled = dir.path().join("scaled.toml");
     std::fs::write(&scaled, &scaled_text).unwrap();
-    let rows = |file: &std::path::Path, out: &str| -> Vec<RunRow> {
-        let out = dir.path().join(out);
-        sigmap_ok(&[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "-q",
-        ]);
-        csv::Reader::from_path(out.join("runs.csv"))
-            .unwrap()
-            .deserialize()
-            .map(|r| r.unwrap())
-            .collect()
-    };
+    let rows = |file: &std::path::Path, out: &str| run_rows(file, &dir.path().join(out));
     let plain = rows(&plain, "plain");
     let scaled = rows(&scaled, "scaled");
-    let strip = |r: &RunRow| {
-        format!(
-            "{:?}",
-            RunRow {
-                cell: String::new(),
-                ..r.clone()
-            }
-        )
-    };
     // Methods in file order: blind, unscented, ray_update per cell.
     assert_eq!(scaled.len(), 6);
     assert_eq!(scaled[1].method, "unscented");
     for i in 0..3 {
         assert_eq!(
-            strip(&scaled[i]),
-            strip(&plain[i]),
+            without_cell(&scaled[i]),
+            without_cell(&plain[i]),
             "the paper's set, row {i}"
         );
     }
     assert_eq!(scaled[4].cell, "experiment.unscented.alpha=0.5");
-    assert_eq!(strip(&scaled[3]), strip(&plain[0]), "blind ignores the set");
     assert_eq!(
-        strip(&scaled[5]),
-        strip(&plain[2]),
+        without_cell(&scaled[3]),
+        without_cell(&plain[0]),
+        "blind ignores the set"
+    );
+    assert_eq!(
+        without_cell(&scaled[5]),
+        without_cell(&plain[2]),
         "the ray update ignores it"
     );
     assert!(

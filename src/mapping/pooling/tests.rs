@@ -2,10 +2,9 @@ use super::*;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 
-/// A 3×3 raster of beams 0.5° apart looking at a plane tilted by `tilt`
-/// (rad) at 0.5 m, each range with independent noise `sigma`; the centre
-/// beam's pooled range error divided by its pooled σ.
-fn normalised_errors(tilt: f64, sigma: f64, trials: usize) -> Vec<f64> {
+/// The unit directions of a 3×3 raster of beams 0.5° apart around +z, row
+/// by row (the middle one is beam 4).
+fn raster_3x3() -> Vec<Vector3> {
     let step = 0.5f64.to_radians();
     let mut directions = Vec::new();
     for v in -1..=1 {
@@ -14,6 +13,14 @@ fn normalised_errors(tilt: f64, sigma: f64, trials: usize) -> Vec<f64> {
             directions.push(Vector3::new(b.cos() * a.sin(), b.sin(), b.cos() * a.cos()));
         }
     }
+    directions
+}
+
+/// A 3×3 raster of beams 0.5° apart looking at a plane tilted by `tilt`
+/// (rad) at 0.5 m, each range with independent noise `sigma`; the centre
+/// beam's pooled range error divided by its pooled σ.
+fn normalised_errors(tilt: f64, sigma: f64, trials: usize) -> Vec<f64> {
+    let directions = raster_3x3();
     let normal = Vector3::new(tilt.sin(), 0.0, -tilt.cos());
     let on_plane = Vector3::new(0.0, 0.0, 0.5);
     let truth: Vec<f64> = directions
@@ -63,17 +70,12 @@ fn a_beam_across_an_edge_keeps_its_own_range() {
     // neighbourhood tells it is not one surface): no beam is pulled across
     // the edge. (At 1 cm a row-edge beam with 6 neighbours is still pulled
     // 3.4 mm: docs/math.md §5.5.)
-    let step = 0.5f64.to_radians();
+    let directions = raster_3x3();
     for near in [0.03, 0.015] {
-        let mut directions = Vec::new();
-        let mut ranges = Vec::new();
-        for v in -1..=1 {
-            for h in -1..=1 {
-                let (a, b) = (h as f64 * step, v as f64 * step);
-                directions.push(Vector3::new(b.cos() * a.sin(), b.sin(), b.cos() * a.cos()));
-                ranges.push(Some(if h == -1 { 0.5 - near } else { 0.5 }));
-            }
-        }
+        // Column h = −1 is every third beam.
+        let ranges: Vec<Option<f64>> = (0..9)
+            .map(|k| Some(if k % 3 == 0 { 0.5 - near } else { 0.5 }))
+            .collect();
         let pooled = pool_ranges(3, &directions, &ranges, |_| 0.002, 0.0);
         for (k, p) in pooled.iter().enumerate() {
             let r = p.unwrap().range;
@@ -101,14 +103,7 @@ fn turned(d: &Vector3, a: f64, b: f64) -> Vector3 {
 /// the simulator does. `lateral_only`: the covariance without the slide
 /// along the plane (the sensor's lateral term instead).
 fn pooled_point_nees(tilt: f64, sigma: f64, angular_sigma: f64, lateral_only: bool) -> f64 {
-    let step = 0.5f64.to_radians();
-    let mut directions = Vec::new();
-    for v in -1..=1 {
-        for h in -1..=1 {
-            let (a, b) = (h as f64 * step, v as f64 * step);
-            directions.push(Vector3::new(b.cos() * a.sin(), b.sin(), b.cos() * a.cos()));
-        }
-    }
+    let directions = raster_3x3();
     let normal = Vector3::new(tilt.sin(), 0.0, -tilt.cos());
     let offset = normal.dot(&Vector3::new(0.0, 0.0, 0.5));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
