@@ -5,7 +5,9 @@
 //! 3×3 raster neighbourhood estimates where the beam's line meets the
 //! surface with variance ≈ σ²/n instead of σ², when the neighbourhood is one
 //! plane plus noise. A beam whose own range disagrees with the plane (an
-//! edge, a second surface) keeps its measurement.
+//! edge, a second surface) keeps its measurement. A large planar face is
+//! then pooled whole (`faces`): thousands of hits fix its plane to
+//! hundredths of a millimetre.
 
 use crate::geometry::{Matrix3, Vector3};
 
@@ -24,10 +26,11 @@ pub struct PooledRange {
 /// A beam's [`PooledRange`], or `None` for a beam without a hit.
 pub type Pooled = Option<PooledRange>;
 
-/// Pools the hits of one viewpoint. `ranges[k]` is beam k's measured range
-/// (`None`: no hit), `directions[k]` its unit direction, beams row by row
-/// with `columns` per row; `sigma(r)` is the range noise at range r and
-/// `angular_sigma` the beams' direction noise (rad).
+/// Pools the hits of one viewpoint, on each beam's 3×3 window, then on the
+/// large planar faces grown over those windows. `ranges[k]` is beam k's
+/// measured range (`None`: no hit), `directions[k]` its unit direction,
+/// beams row by row with `columns` per row; `sigma(r)` is the range noise
+/// at range r and `angular_sigma` the beams' direction noise (rad).
 pub fn pool_ranges(
     columns: usize,
     directions: &[Vector3],
@@ -65,7 +68,18 @@ pub fn pool_ranges(
         }
         out.push(Some(pool_one(&points, &directions[k], r, own_sigma)));
     }
+    faces::pool_faces(columns, directions, ranges, &sigma, angular_sigma, &mut out);
     out
+}
+
+/// The variance along the plane normal `normal` of a hit along `direction`
+/// with range noise `sigma` and sideways noise `lateral` (`r σ_a`): its range
+/// noise seen along the normal, and its direction noise moving it sideways,
+/// off a slanted plane.
+#[inline]
+fn normal_variance(normal: &Vector3, direction: &Vector3, sigma: f64, lateral: f64) -> f64 {
+    let along = normal.dot(direction);
+    (sigma * along).powi(2) + lateral.powi(2) * (1.0 - along * along).max(0.0)
 }
 
 impl PooledRange {
@@ -110,12 +124,8 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> Po
     let Some(plane) = fit_plane(points.iter().map(|p| p.point)) else {
         return raw;
     };
-    // Each point's noise along the plane's normal: its range noise, and its
-    // direction noise moving it sideways, off a slanted plane.
-    let normal_variance_of = |p: &Neighbour| {
-        let along = plane.normal.dot(&p.direction);
-        (p.sigma * along).powi(2) + p.lateral.powi(2) * (1.0 - along * along).max(0.0)
-    };
+    let normal_variance_of =
+        |p: &Neighbour| normal_variance(&plane.normal, &p.direction, p.sigma, p.lateral);
     let chi2: f64 = points
         .iter()
         .map(|p| {
@@ -130,26 +140,9 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> Po
     if own_off.abs() > 3.0 || along.abs() < 0.1 {
         return raw;
     }
-    let pooled = plane.normal.dot(&plane.centroid) / along;
-    if !(pooled.is_finite() && pooled > 0.0) {
-        return raw;
-    }
-    // Regression prediction variance of the plane at the beam's crossing,
-    // along the normal, then along the beam.
     let n = points.len() as f64;
-    let normal_variance = points.iter().map(normal_variance_of).sum::<f64>() / n;
-    let offset = direction * pooled - plane.centroid;
-    let spread = plane
-        .in_plane
-        .iter()
-        .map(|(axis, scatter)| offset.dot(axis).powi(2) / scatter)
-        .sum::<f64>();
-    let variance = normal_variance * (1.0 / n + spread) / (along * along);
-    PooledRange {
-        range: pooled,
-        sigma: variance.sqrt(),
-        normal: Some(plane.normal),
-    }
+    let mean_variance = points.iter().map(normal_variance_of).sum::<f64>() / n;
+    plane.predict(direction, mean_variance, n).unwrap_or(raw)
 }
 
 /// A hit of the neighbourhood: its camera-frame point, range noise, the
@@ -172,6 +165,31 @@ struct Plane {
 impl Plane {
     fn distance(&self, p: &Vector3) -> f64 {
         self.normal.dot(&(p - self.centroid))
+    }
+
+    /// Where the line along `direction` meets the plane fitted to `n` points
+    /// whose mean variance along the normal is `mean_variance`, with the
+    /// regression prediction variance there (along the normal, then along
+    /// the beam): `σ̄_n² (1/n + (o·u)²/λ_u + (o·v)²/λ_v) / (n·d)²`. `None`
+    /// when the line meets it behind the sensor or not at all.
+    fn predict(&self, direction: &Vector3, mean_variance: f64, n: f64) -> Option<PooledRange> {
+        let along = self.normal.dot(direction);
+        let pooled = self.normal.dot(&self.centroid) / along;
+        if !(pooled.is_finite() && pooled > 0.0) {
+            return None;
+        }
+        let offset = direction * pooled - self.centroid;
+        let spread = self
+            .in_plane
+            .iter()
+            .map(|(axis, scatter)| offset.dot(axis).powi(2) / scatter)
+            .sum::<f64>();
+        let variance = mean_variance * (1.0 / n + spread) / (along * along);
+        Some(PooledRange {
+            range: pooled,
+            sigma: variance.sqrt(),
+            normal: Some(self.normal),
+        })
     }
 }
 
@@ -212,5 +230,6 @@ fn fit_plane(points: impl Iterator<Item = Vector3> + Clone) -> Option<Plane> {
     })
 }
 
+mod faces;
 #[cfg(test)]
 mod tests;

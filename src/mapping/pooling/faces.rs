@@ -1,0 +1,209 @@
+//! Pooling a whole planar face (docs/math.md §5.5, "faces").
+//!
+//! A 3×3 window fixes a surface to about σ/3, which leaves a large face
+//! that lies a fraction of a millimetre below a cell plane to chance. A
+//! face seen by thousands of beams fixes its plane to σ/√m. Faces are grown
+//! over the beams whose window was pooled, each against the plane of what
+//! it has grown so far; a face whose hits pass a χ² test as one plane pools
+//! the beams in its interior on that plane.
+
+use super::{fit_plane, normal_variance, Pooled};
+use crate::geometry::Vector3;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+/// Hits a face needs before its plane replaces the windows'. [DESIGN]
+/// Measured (§5.5): faces of 10–50 hits sit on curved objects and make the
+/// pooled points over-confident without changing the map; from 200 to 2 000
+/// the maps are the same (only table tops and box faces reach it).
+pub(super) const MIN_FACE_HITS: usize = 200;
+
+/// A beam joins a face when its window's estimate lies within this many of
+/// that estimate's standard deviations of the face's plane (as a beam must
+/// lie within 3σ of its own window's plane to be pooled there): a step of a
+/// few σ/3, a plate lying on a table, is not taken into the table.
+const JOIN_SIGMAS: f64 = 3.0;
+
+/// Raises `out` (the windows' pooling of `ranges`, beams row by row with
+/// `columns` per row) to the face's plane for every beam inside a planar
+/// face of at least [`MIN_FACE_HITS`] hits.
+pub(super) fn pool_faces(
+    columns: usize,
+    directions: &[Vector3],
+    ranges: &[Option<f64>],
+    sigma: &impl Fn(f64) -> f64,
+    angular_sigma: f64,
+    out: &mut [Pooled],
+) {
+    let count = ranges.len().min(out.len()).min(directions.len());
+    if columns == 0 || count < MIN_FACE_HITS {
+        return;
+    }
+    let rows = count / columns;
+    let hit = |k: usize| ranges[k].map(|r| directions[k] * r);
+    let variance_along = |k: usize, normal: &Vector3| {
+        let r = ranges[k].unwrap_or(0.0);
+        normal_variance(normal, &directions[k], sigma(r), r * angular_sigma)
+    };
+    // Only a beam whose own window was one plane plus noise may seed or join
+    // a face: an edge or a second surface in its window has refused it.
+    let window_pooled: Vec<bool> = out[..count]
+        .iter()
+        .map(|p| p.is_some_and(|p| p.normal.is_some()))
+        .collect();
+    let windowed = |k: usize| window_pooled[k];
+    // Whether beam j's window estimate lies within JOIN_SIGMAS of its own
+    // standard deviation (along the normal) of the plane through `centre`.
+    let window_near = |j: usize, normal: &Vector3, centre: &Vector3| {
+        out[j].is_some_and(|w| {
+            let distance = normal.dot(&(directions[j] * w.range - centre));
+            distance.abs() <= JOIN_SIGMAS * w.sigma * normal.dot(&directions[j]).abs()
+        })
+    };
+    let mut face_of = vec![u32::MAX; count];
+    let mut faces: Vec<Vec<usize>> = Vec::new();
+    for seed in 0..count {
+        if face_of[seed] != u32::MAX || !windowed(seed) {
+            continue;
+        }
+        let id = faces.len() as u32;
+        let Some(window) = out[seed] else { continue };
+        // The seed's window plane: through its pooled point, its normal.
+        let plane = (
+            directions[seed] * window.range,
+            window.normal.unwrap_or_default(),
+        );
+        let mut claim = |k: usize| {
+            let free = face_of[k] == u32::MAX && windowed(k);
+            if free {
+                face_of[k] = id;
+            }
+            free
+        };
+        let face = grow(seed, plane, (columns, rows), &window_near, &mut claim, &hit);
+        faces.push(face);
+    }
+    for (id, face) in faces.iter().enumerate() {
+        if face.len() < MIN_FACE_HITS {
+            continue;
+        }
+        let Some(plane) = fit_plane(face.iter().filter_map(|&k| hit(k))) else {
+            continue;
+        };
+        let variances: Vec<f64> = face
+            .iter()
+            .map(|&k| variance_along(k, &plane.normal))
+            .collect();
+        let chi2: f64 = face
+            .iter()
+            .zip(&variances)
+            .map(|(&k, v)| hit(k).map_or(0.0, |h| plane.distance(&h).powi(2) / v))
+            .sum();
+        let Ok(chi) = ChiSquared::new((face.len() - 3) as f64) else {
+            continue;
+        };
+        if chi2 > chi.inverse_cdf(0.99) {
+            continue;
+        }
+        let m = face.len() as f64;
+        let mean_variance = variances.iter().sum::<f64>() / m;
+        // On the face: a member, or a hit whose window failed its test (by
+        // chance, one in a few dozen) and which lies within 3σ of the plane.
+        // A hit whose window passed but did not join lies on another surface.
+        let on_face = |j: usize| {
+            face_of[j] == id as u32
+                || (!windowed(j)
+                    && hit(j).is_some_and(|h| {
+                        plane.distance(&h).powi(2)
+                            <= JOIN_SIGMAS * JOIN_SIGMAS * variance_along(j, &plane.normal)
+                    }))
+        };
+        for &k in face {
+            // A hit on the face's rim may belong to the next surface (the foot
+            // of an object standing on a table lies within 3σ of the table):
+            // only beams whose eight neighbours are all on the face are pooled
+            // on it.
+            let (row, col) = (k / columns, k % columns);
+            let inside = row > 0
+                && col > 0
+                && row + 1 < rows
+                && col + 1 < columns
+                && (row - 1..=row + 1)
+                    .all(|r| (col - 1..=col + 1).all(|c| on_face(r * columns + c)));
+            if !inside || plane.normal.dot(&directions[k]).abs() < 0.1 {
+                continue;
+            }
+            if let Some(pooled) = plane.predict(&directions[k], mean_variance, m) {
+                out[k] = Some(pooled);
+            }
+        }
+    }
+}
+
+/// The face grown from beam `seed`: breadth first over the four raster
+/// neighbours (`(columns, rows)`), a neighbour joining when it is `near`
+/// the plane of the face so far (`(point, normal)` first: the seed's window
+/// plane; refitted each time the face doubles, and to the whole face once
+/// it stops growing, when the neighbours refused are asked again) and
+/// `claim` gives it (unassigned, its window pooled).
+fn grow(
+    seed: usize,
+    (mut centre, mut normal): (Vector3, Vector3),
+    (columns, rows): (usize, usize),
+    near: &impl Fn(usize, &Vector3, &Vector3) -> bool,
+    claim: &mut impl FnMut(usize) -> bool,
+    hit: &impl Fn(usize) -> Option<Vector3>,
+) -> Vec<usize> {
+    let mut face = Vec::new();
+    if !claim(seed) {
+        return face;
+    }
+    face.push(seed);
+    let refit = |face: &[usize], normal: &mut Vector3, centre: &mut Vector3| {
+        if let Some(plane) = fit_plane(face.iter().filter_map(|&k| hit(k))) {
+            (*normal, *centre) = (plane.normal, plane.centroid);
+        }
+    };
+    // Neighbours refused so far: an early plane, fitted to a few dozen hits,
+    // may refuse beams far along the face that the final plane takes.
+    let mut refused = Vec::new();
+    let (mut next_fit, mut head) = (16, 0);
+    loop {
+        while head < face.len() {
+            let k = face[head];
+            head += 1;
+            let (row, col) = (k / columns, k % columns);
+            let neighbours = [
+                (col + 1 < columns).then(|| k + 1),
+                (col > 0).then(|| k - 1),
+                (row + 1 < rows).then(|| k + columns),
+                (row > 0).then(|| k - columns),
+            ];
+            for j in neighbours.into_iter().flatten() {
+                if !near(j, &normal, &centre) {
+                    refused.push(j);
+                } else if claim(j) {
+                    face.push(j);
+                }
+            }
+            if face.len() >= next_fit {
+                refit(&face, &mut normal, &mut centre);
+                next_fit *= 2;
+            }
+        }
+        // Grown as far as this plane allows: refit to the whole face and ask
+        // the refused again, until none joins.
+        refit(&face, &mut normal, &mut centre);
+        let before = face.len();
+        for j in std::mem::take(&mut refused) {
+            if !near(j, &normal, &centre) {
+                refused.push(j);
+            } else if claim(j) {
+                face.push(j);
+            }
+        }
+        if face.len() == before {
+            break;
+        }
+    }
+    face
+}
