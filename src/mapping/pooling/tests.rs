@@ -44,6 +44,14 @@ fn normalised_errors(tilt: f64, sigma: f64, trials: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The sample mean and (unbiased) variance of `e`.
+fn mean_and_variance(e: &[f64]) -> (f64, f64) {
+    let n = e.len() as f64;
+    let mean = e.iter().sum::<f64>() / n;
+    let var = e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, var)
+}
+
 #[test]
 fn a_pooled_range_is_unbiased_with_the_variance_it_claims() {
     // 20 000 trials (SE of a variance: sqrt(2/N) = 0.01). The mean is within
@@ -54,10 +62,11 @@ fn a_pooled_range_is_unbiased_with_the_variance_it_claims() {
     // instead of σ/√n, or the raw range with the pooled σ, gives 9.
     for tilt in [0.0, 0.6, 1.1] {
         let e = normalised_errors(tilt, 0.002, 20_000);
-        let n = e.len() as f64;
-        let mean = e.iter().sum::<f64>() / n;
-        let var = e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
-        assert!(mean.abs() < 4.0 / n.sqrt(), "tilt {tilt}: mean {mean}");
+        let (mean, var) = mean_and_variance(&e);
+        assert!(
+            mean.abs() < 4.0 / (e.len() as f64).sqrt(),
+            "tilt {tilt}: mean {mean}"
+        );
         assert!((0.96..=1.10).contains(&var), "tilt {tilt}: variance {var}");
     }
 }
@@ -225,10 +234,11 @@ fn a_large_face_is_pooled_whole_with_the_variance_it_claims() {
         })
         .collect();
     assert!(errors.len() >= trials * 8 / 10, "{} faces", errors.len());
-    let m = errors.len() as f64;
-    let mean = errors.iter().sum::<f64>() / m;
-    let var = errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (m - 1.0);
-    assert!(mean.abs() < 4.0 / m.sqrt(), "mean {mean}");
+    let (mean, var) = mean_and_variance(&errors);
+    assert!(
+        mean.abs() < 4.0 / (errors.len() as f64).sqrt(),
+        "mean {mean}"
+    );
     assert!((0.72..=1.28).contains(&var), "variance {var}");
 }
 
