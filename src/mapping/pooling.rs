@@ -121,7 +121,10 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> Po
     if points.len() < 5 {
         return raw;
     }
-    let Some(plane) = fit_plane(points.iter().map(|p| p.point)) else {
+    let noise = points.iter().fold(Matrix3::zeros(), |a, p| {
+        a + hit_covariance(&p.direction, p.sigma, p.lateral)
+    });
+    let Some(plane) = fit_plane(points.iter().map(|p| p.point), &noise) else {
         return raw;
     };
     let normal_variance_of =
@@ -143,6 +146,14 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> Po
     let n = points.len() as f64;
     let mean_variance = points.iter().map(normal_variance_of).sum::<f64>() / n;
     plane.predict(direction, mean_variance, n).unwrap_or(raw)
+}
+
+/// The covariance of a hit along unit `direction` with range noise `sigma`
+/// and sideways noise `lateral` (`r σ_a`): `σ² d dᵀ + lateral² (I − d dᵀ)`.
+#[inline]
+fn hit_covariance(direction: &Vector3, sigma: f64, lateral: f64) -> Matrix3 {
+    let ddt = direction * direction.transpose();
+    ddt * (sigma * sigma) + (Matrix3::identity() - ddt) * (lateral * lateral)
 }
 
 /// A hit of the neighbourhood: its camera-frame point, range noise, the
@@ -193,9 +204,14 @@ impl Plane {
     }
 }
 
-/// The total-least-squares plane of ≥ 4 points (`None` when they are
-/// degenerate: all on a line).
-fn fit_plane(points: impl Iterator<Item = Vector3> + Clone) -> Option<Plane> {
+/// The plane of ≥ 4 points (`None` when they are degenerate: all on a
+/// line), from their scatter less the scatter their noise adds:
+/// `S − (m − 1)/m · Σ_j C_j`, with `noise` = `Σ_j C_j` the sum of the points'
+/// covariances. Range noise lies along each beam, not along the normal, and
+/// on a slanted plane it tilts the plain total-least-squares plane: a face's
+/// prediction at a beam off its centroid was then biased by half its σ
+/// (docs/math.md §5.5); removing the noise's share makes the fit consistent.
+fn fit_plane(points: impl Iterator<Item = Vector3> + Clone, noise: &Matrix3) -> Option<Plane> {
     let n = points.clone().count();
     if n < 4 {
         return None;
@@ -204,7 +220,7 @@ fn fit_plane(points: impl Iterator<Item = Vector3> + Clone) -> Option<Plane> {
     let scatter = points.fold(Matrix3::zeros(), |a, p| {
         let d = p - centroid;
         a + d * d.transpose()
-    });
+    }) - noise * ((n - 1) as f64 / n as f64);
     let eig = scatter.symmetric_eigen();
     let (mut min, mut second) = (0, 1);
     for i in 0..3 {

@@ -7,8 +7,8 @@
 //! it has grown so far; a face whose hits pass a χ² test as one plane pools
 //! the beams in its interior on that plane.
 
-use super::{fit_plane, normal_variance, Pooled};
-use crate::geometry::Vector3;
+use super::{fit_plane, hit_covariance, normal_variance, Plane, Pooled};
+use crate::geometry::{Matrix3, Vector3};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Hits a face needs before its plane replaces the windows'. [DESIGN]
@@ -40,6 +40,16 @@ pub(super) fn pool_faces(
     }
     let rows = count / columns;
     let hit = |k: usize| ranges[k].map(|r| directions[k] * r);
+    let covariance = |k: usize| {
+        let r = ranges[k].unwrap_or(0.0);
+        hit_covariance(&directions[k], sigma(r), r * angular_sigma)
+    };
+    let fit = |face: &[usize]| {
+        let noise = face
+            .iter()
+            .fold(Matrix3::zeros(), |a, &k| a + covariance(k));
+        fit_plane(face.iter().filter_map(|&k| hit(k)), &noise)
+    };
     let variance_along = |k: usize, normal: &Vector3| {
         let r = ranges[k].unwrap_or(0.0);
         normal_variance(normal, &directions[k], sigma(r), r * angular_sigma)
@@ -79,14 +89,14 @@ pub(super) fn pool_faces(
             }
             free
         };
-        let face = grow(seed, plane, (columns, rows), &window_near, &mut claim, &hit);
+        let face = grow(seed, plane, (columns, rows), &window_near, &mut claim, &fit);
         faces.push(face);
     }
     for (id, face) in faces.iter().enumerate() {
         if face.len() < MIN_FACE_HITS {
             continue;
         }
-        let Some(plane) = fit_plane(face.iter().filter_map(|&k| hit(k))) else {
+        let Some(plane) = fit(face) else {
             continue;
         };
         let variances: Vec<f64> = face
@@ -151,7 +161,7 @@ fn grow(
     (columns, rows): (usize, usize),
     near: &impl Fn(usize, &Vector3, &Vector3) -> bool,
     claim: &mut impl FnMut(usize) -> bool,
-    hit: &impl Fn(usize) -> Option<Vector3>,
+    fit: &impl Fn(&[usize]) -> Option<Plane>,
 ) -> Vec<usize> {
     let mut face = Vec::new();
     if !claim(seed) {
@@ -159,7 +169,7 @@ fn grow(
     }
     face.push(seed);
     let refit = |face: &[usize], normal: &mut Vector3, centre: &mut Vector3| {
-        if let Some(plane) = fit_plane(face.iter().filter_map(|&k| hit(k))) {
+        if let Some(plane) = fit(face) {
             (*normal, *centre) = (plane.normal, plane.centroid);
         }
     };
