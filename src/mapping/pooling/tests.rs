@@ -44,12 +44,23 @@ fn normalised_errors(tilt: f64, sigma: f64, trials: usize) -> Vec<f64> {
         .collect()
 }
 
-/// The sample mean and (unbiased) variance of `e`.
-fn mean_and_variance(e: &[f64]) -> (f64, f64) {
+/// Asserts that the normalised errors `e` have mean within ±4/√n of 0 (4
+/// standard errors) and sample variance within `variance` (`what` names the
+/// case in the message).
+fn assert_standardised(e: &[f64], variance: std::ops::RangeInclusive<f64>, what: &str) {
     let n = e.len() as f64;
     let mean = e.iter().sum::<f64>() / n;
     let var = e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, var)
+    assert!(mean.abs() < 4.0 / n.sqrt(), "{what}: mean {mean}");
+    assert!(variance.contains(&var), "{what}: variance {var}");
+}
+
+/// `truth` with independent Gaussian noise `sigma` on every range.
+fn noisy(truth: &[f64], sigma: f64, rng: &mut impl rand::Rng) -> Vec<Option<f64>> {
+    truth
+        .iter()
+        .map(|r| Some(r + sigma * Distribution::<f64>::sample(&StandardNormal, rng)))
+        .collect()
 }
 
 #[test]
@@ -62,12 +73,7 @@ fn a_pooled_range_is_unbiased_with_the_variance_it_claims() {
     // instead of σ/√n, or the raw range with the pooled σ, gives 9.
     for tilt in [0.0, 0.6, 1.1] {
         let e = normalised_errors(tilt, 0.002, 20_000);
-        let (mean, var) = mean_and_variance(&e);
-        assert!(
-            mean.abs() < 4.0 / (e.len() as f64).sqrt(),
-            "tilt {tilt}: mean {mean}"
-        );
-        assert!((0.96..=1.10).contains(&var), "tilt {tilt}: variance {var}");
+        assert_standardised(&e, 0.96..=1.10, &format!("tilt {tilt}"));
     }
 }
 
@@ -225,21 +231,13 @@ fn a_large_face_is_pooled_whole_with_the_variance_it_claims() {
     let trials = 400;
     let errors: Vec<f64> = (0..trials)
         .filter_map(|_| {
-            let ranges: Vec<Option<f64>> = truth
-                .iter()
-                .map(|r| Some(r + sigma * Distribution::<f64>::sample(&StandardNormal, &mut rng)))
-                .collect();
+            let ranges = noisy(&truth, sigma, &mut rng);
             let p = pool_ranges(n, &directions, &ranges, |_| sigma, 0.0)[centre].unwrap();
             (p.sigma < sigma / 10.0).then(|| (p.range - truth[centre]) / p.sigma)
         })
         .collect();
     assert!(errors.len() >= trials * 8 / 10, "{} faces", errors.len());
-    let (mean, var) = mean_and_variance(&errors);
-    assert!(
-        mean.abs() < 4.0 / (errors.len() as f64).sqrt(),
-        "mean {mean}"
-    );
-    assert!((0.72..=1.28).contains(&var), "variance {var}");
+    assert_standardised(&errors, 0.72..=1.28, "the face's prediction");
 }
 
 #[test]
@@ -278,10 +276,7 @@ fn a_plate_lying_on_a_face_is_not_pooled_into_it() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
     let (mut floor_face, mut away_pooled) = (0, 0);
     for _ in 0..50 {
-        let ranges: Vec<Option<f64>> = truth
-            .iter()
-            .map(|r| Some(r + sigma * Distribution::<f64>::sample(&StandardNormal, &mut rng)))
-            .collect();
+        let ranges = noisy(&truth, sigma, &mut rng);
         let pooled = pool_ranges(n, &directions, &ranges, |_| sigma, 0.0);
         // The floor is pooled as a face away from the plate.
         if pooled[2 * n + 2].unwrap().sigma < sigma / 10.0 {
@@ -319,20 +314,12 @@ fn a_face_predicts_a_beam_off_its_centre_without_bias() {
     let trials = 2000;
     let errors: Vec<f64> = (0..trials)
         .filter_map(|_| {
-            let ranges: Vec<Option<f64>> = truth
-                .iter()
-                .map(|r| Some(r + sigma * Distribution::<f64>::sample(&StandardNormal, &mut rng)))
-                .collect();
+            let ranges = noisy(&truth, sigma, &mut rng);
             let p = pool_ranges(n, &directions, &ranges, |_| sigma, 0.0)[beam].unwrap();
             // The face's σ (about 0.26 mm), not a window's (0.8 mm).
             (p.sigma < 0.0004).then(|| (p.range - truth[beam]) / p.sigma)
         })
         .collect();
     assert!(errors.len() >= trials * 7 / 10, "{} faces", errors.len());
-    let (mean, var) = mean_and_variance(&errors);
-    assert!(
-        mean.abs() < 4.0 / (errors.len() as f64).sqrt(),
-        "mean {mean}"
-    );
-    assert!((0.9..=1.2).contains(&var), "variance {var}");
+    assert_standardised(&errors, 0.9..=1.2, "the face's prediction");
 }
