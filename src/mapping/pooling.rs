@@ -39,14 +39,19 @@ pub fn pool_ranges(
     angular_sigma: f64,
 ) -> Vec<Pooled> {
     let rows = ranges.len() / columns.max(1);
+    // Each hit's point and noise, once: a hit sits in up to nine windows.
+    let hits: Vec<Option<Neighbour>> = ranges
+        .iter()
+        .zip(directions)
+        .map(|(r, d)| r.map(|r| Neighbour::new(d, r, sigma(r), r * angular_sigma)))
+        .collect();
     let mut out = Vec::with_capacity(ranges.len());
     let mut points: Vec<Neighbour> = Vec::with_capacity(9);
     for k in 0..ranges.len() {
-        let Some(r) = ranges[k] else {
+        let Some(own) = hits[k] else {
             out.push(None);
             continue;
         };
-        let own_sigma = sigma(r);
         let (row, col) = ((k / columns) as i64, (k % columns) as i64);
         points.clear();
         for dr in -1..=1i64 {
@@ -55,20 +60,13 @@ pub fn pool_ranges(
                 if rr < 0 || cc < 0 || rr >= rows as i64 || cc >= columns as i64 {
                     continue;
                 }
-                let j = rr as usize * columns + cc as usize;
-                if let Some(rj) = ranges[j] {
-                    points.push(Neighbour {
-                        point: directions[j] * rj,
-                        sigma: sigma(rj),
-                        lateral: rj * angular_sigma,
-                        direction: directions[j],
-                    });
-                }
+                points.extend(hits[rr as usize * columns + cc as usize]);
             }
         }
-        out.push(Some(pool_one(&points, &directions[k], r, own_sigma)));
+        let r = ranges[k].unwrap_or_default();
+        out.push(Some(pool_one(&points, &own.direction, r, own.sigma)));
     }
-    faces::pool_faces(columns, directions, ranges, &sigma, angular_sigma, &mut out);
+    faces::pool_faces(columns, directions, &hits, &mut out);
     out
 }
 
@@ -121,14 +119,13 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> Po
     if points.len() < 5 {
         return raw;
     }
-    let noise = points.iter().fold(Matrix3::zeros(), |a, p| {
-        a + hit_covariance(&p.direction, p.sigma, p.lateral)
-    });
+    let noise = points
+        .iter()
+        .fold(Matrix3::zeros(), |a, p| a + p.covariance);
     let Some(plane) = fit_plane(points.iter().map(|p| p.point), &noise) else {
         return raw;
     };
-    let normal_variance_of =
-        |p: &Neighbour| normal_variance(&plane.normal, &p.direction, p.sigma, p.lateral);
+    let normal_variance_of = |p: &Neighbour| p.normal_variance(&plane.normal);
     let chi2: f64 = points
         .iter()
         .map(|p| {
@@ -148,22 +145,36 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> Po
     plane.predict(direction, mean_variance, n).unwrap_or(raw)
 }
 
-/// The covariance of a hit along unit `direction` with range noise `sigma`
-/// and sideways noise `lateral` (`r σ_a`): `σ² d dᵀ + lateral² (I − d dᵀ)`.
-#[inline]
-fn hit_covariance(direction: &Vector3, sigma: f64, lateral: f64) -> Matrix3 {
-    let ddt = direction * direction.transpose();
-    ddt * (sigma * sigma) + (Matrix3::identity() - ddt) * (lateral * lateral)
-}
-
 /// A hit of the neighbourhood: its camera-frame point, range noise, the
-/// sideways noise its direction noise gives it at its range (`r σ_a`), and
-/// its beam direction.
+/// sideways noise its direction noise gives it at its range (`r σ_a`), its
+/// beam direction and the point's covariance.
+#[derive(Clone, Copy)]
 struct Neighbour {
     point: Vector3,
     sigma: f64,
     lateral: f64,
     direction: Vector3,
+    covariance: Matrix3,
+}
+
+impl Neighbour {
+    /// The hit at range `r` along unit `direction` with range noise `sigma`
+    /// and sideways noise `lateral`: covariance `σ² d dᵀ + lateral² (I − d dᵀ)`.
+    fn new(direction: &Vector3, r: f64, sigma: f64, lateral: f64) -> Self {
+        let ddt = direction * direction.transpose();
+        Self {
+            point: direction * r,
+            sigma,
+            lateral,
+            direction: *direction,
+            covariance: ddt * (sigma * sigma) + (Matrix3::identity() - ddt) * (lateral * lateral),
+        }
+    }
+
+    /// Its noise variance along the unit `normal` ([`normal_variance`]).
+    fn normal_variance(&self, normal: &Vector3) -> f64 {
+        normal_variance(normal, &self.direction, self.sigma, self.lateral)
+    }
 }
 
 struct Plane {

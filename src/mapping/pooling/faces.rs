@@ -7,7 +7,7 @@
 //! it has grown so far; a face whose hits pass a χ² test as one plane pools
 //! the beams in its interior on that plane.
 
-use super::{fit_plane, hit_covariance, normal_variance, Plane, Pooled};
+use super::{fit_plane, Neighbour, Plane, Pooled};
 use crate::geometry::{Matrix3, Vector3};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
@@ -29,41 +29,34 @@ const JOIN_SIGMAS: f64 = 3.0;
 /// that keeps creeping along a curved surface.
 const MAX_ROUNDS: usize = 32;
 
-/// Raises `out` (the windows' pooling of `ranges`, beams row by row with
+/// Raises `out` (the windows' pooling of the `hits`, beams row by row with
 /// `columns` per row) to the face's plane for every beam inside a planar
 /// face of at least [`MIN_FACE_HITS`] hits.
 pub(super) fn pool_faces(
     columns: usize,
     directions: &[Vector3],
-    ranges: &[Option<f64>],
-    sigma: &impl Fn(f64) -> f64,
-    angular_sigma: f64,
+    hits: &[Option<Neighbour>],
     out: &mut [Pooled],
 ) {
     if columns == 0 {
         return;
     }
     // Whole raster rows only.
-    let rows = ranges.len().min(out.len()).min(directions.len()) / columns;
+    let rows = hits.len().min(out.len()).min(directions.len()) / columns;
     let count = rows * columns;
     if count < MIN_FACE_HITS {
         return;
     }
-    let hit = |k: usize| ranges[k].map(|r| directions[k] * r);
-    let covariance = |k: usize| {
-        let r = ranges[k].unwrap_or(0.0);
-        hit_covariance(&directions[k], sigma(r), r * angular_sigma)
-    };
+    let hit = |k: usize| hits[k].map(|h| h.point);
     let fit = |face: &[usize]| {
         let noise = face
             .iter()
-            .fold(Matrix3::zeros(), |a, &k| a + covariance(k));
+            .filter_map(|&k| hits[k])
+            .fold(Matrix3::zeros(), |a, h| a + h.covariance);
         fit_plane(face.iter().filter_map(|&k| hit(k)), &noise)
     };
-    let variance_along = |k: usize, normal: &Vector3| {
-        let r = ranges[k].unwrap_or(0.0);
-        normal_variance(normal, &directions[k], sigma(r), r * angular_sigma)
-    };
+    let variance_along =
+        |k: usize, normal: &Vector3| hits[k].map_or(0.0, |h| h.normal_variance(normal));
     // Only a beam whose own window was one plane plus noise may seed or join
     // a face: an edge or a second surface in its window has refused it.
     let window_pooled: Vec<bool> = out[..count]
