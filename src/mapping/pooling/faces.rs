@@ -119,22 +119,26 @@ pub(super) fn pool_faces(
         }
         let m = face.len() as f64;
         let mean_variance = variances.iter().sum::<f64>() / m;
-        // On the face: a member, or a hit whose window failed its test (by
-        // chance, one in a few dozen) and which lies within 3σ of the plane.
-        // A hit whose window passed but did not join lies on another surface.
+        // Showing no other surface: a member, a hit whose window failed its
+        // test (by chance, one in a few dozen) and which lies within 3σ of
+        // the plane, or a beam without a return (nothing in range, or one of
+        // the sensor's dropouts). A hit whose window passed but did not join
+        // lies on another surface, as does a failed hit off the plane.
         let on_face = |j: usize| {
             face_of[j] == id as u32
-                || (!windowed(j)
-                    && hit(j).is_some_and(|h| {
-                        plane.distance(&h).powi(2)
+                || hit(j).is_none_or(|h| {
+                    !windowed(j)
+                        && plane.distance(&h).powi(2)
                             <= JOIN_SIGMAS * JOIN_SIGMAS * variance_along(j, &plane.normal)
-                    }))
+                })
         };
         for &k in face {
             // A hit on the face's rim may belong to the next surface (the foot
             // of an object standing on a table lies within 3σ of the table):
-            // only beams whose eight neighbours are all on the face are pooled
-            // on it.
+            // only beams with eight neighbours, none showing another surface,
+            // are pooled on it. Past the raster's edge nothing is known, and
+            // a surface there may rise from the face: measured (§5.5),
+            // pooling the edge too raised the shelf's ANEES.
             let (row, col) = (k / columns, k % columns);
             let inside = row > 0
                 && col > 0
