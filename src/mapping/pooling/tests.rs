@@ -208,6 +208,16 @@ fn plane_ranges(directions: &[Vector3], normal: &Vector3) -> Vec<f64> {
     directions.iter().map(|d| offset / normal.dot(d)).collect()
 }
 
+/// An `n`×`n` raster ([`raster`]) on a plane tilted by 34° (0.6 rad) about
+/// the raster's vertical axis, 0.5 m ahead: the directions and the true
+/// ranges.
+fn tilted_face(n: usize) -> (Vec<Vector3>, Vec<f64>) {
+    let directions = raster(n);
+    let normal = Vector3::new(0.6f64.sin(), 0.0, -0.6f64.cos());
+    let truth = plane_ranges(&directions, &normal);
+    (directions, truth)
+}
+
 #[test]
 fn a_large_face_is_pooled_whole_with_the_variance_it_claims() {
     // A 31×31 raster on a plane tilted by 34° at 0.5 m, 2 mm range noise:
@@ -221,10 +231,7 @@ fn a_large_face_is_pooled_whole_with_the_variance_it_claims() {
     // by chance once in a hundred, so about 8% of the trials keep the
     // centre's window: at least 80% must be the face's.)
     let n = 31;
-    let directions = raster(n);
-    let tilt: f64 = 0.6;
-    let normal = Vector3::new(tilt.sin(), 0.0, -tilt.cos());
-    let truth = plane_ranges(&directions, &normal);
+    let (directions, truth) = tilted_face(n);
     let sigma = 0.002;
     let centre = n * n / 2;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
@@ -305,9 +312,7 @@ fn a_face_predicts_a_beam_off_its_centre_without_bias() {
     // has mean within ±4/√2000 = 0.09 of 0 and variance within [0.9, 1.2]
     // (measured 1.06; the sample variance's SE is 0.03).
     let n = 15;
-    let directions = raster(n);
-    let normal = Vector3::new(0.6f64.sin(), 0.0, -0.6f64.cos());
-    let truth = plane_ranges(&directions, &normal);
+    let (directions, truth) = tilted_face(n);
     let sigma = 0.002;
     let beam = 7 * n + 1;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
@@ -338,9 +343,7 @@ fn a_face_is_pooled_around_its_dropouts_but_not_at_the_raster_edge() {
     // nothing is known: beam (0, 1) on the first row is never pooled on the
     // face (pooling it raised the shelf's ANEES, §5.5).
     let n = 31;
-    let directions = raster(n);
-    let normal = Vector3::new(0.6f64.sin(), 0.0, -0.6f64.cos());
-    let truth = plane_ranges(&directions, &normal);
+    let (directions, truth) = tilted_face(n);
     let sigma = 0.002;
     let dropouts = [5 * n + 7, 9 * n + 22, 15 * n + 15, 20 * n + 4, 26 * n + 18];
     let (edge, beside) = (1, 15 * n + 16);
