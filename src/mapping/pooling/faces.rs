@@ -5,7 +5,8 @@
 //! face seen by thousands of beams fixes its plane to σ/√m. Faces are grown
 //! over the beams whose window was pooled, each against the plane of what
 //! it has grown so far; a face whose hits pass a χ² test as one plane pools
-//! the beams in its interior on that plane.
+//! the beams in its interior on that plane (its members, and the hits on it
+//! whose own window failed by chance).
 
 use super::{fit_plane, Neighbour, Plane, Pooled};
 use crate::geometry::{Matrix3, Vector3};
@@ -31,7 +32,8 @@ const MAX_ROUNDS: usize = 32;
 
 /// Raises `out` (the windows' pooling of the `hits`, beams row by row with
 /// `columns` per row) to the face's plane for every beam inside a planar
-/// face of at least [`MIN_FACE_HITS`] hits.
+/// face of at least [`MIN_FACE_HITS`] hits, and for the hits beside it on
+/// its plane whose window failed by chance.
 pub(super) fn pool_faces(
     columns: usize,
     directions: &[Vector3],
@@ -132,7 +134,21 @@ pub(super) fn pool_faces(
                             <= JOIN_SIGMAS * JOIN_SIGMAS * variance_along(j, &plane.normal)
                 })
         };
+        // The hits beside the face whose window failed by chance (one in a
+        // hundred at the 99% test) and that lie on its plane: where a window
+        // failed for a real second surface, a neighbour shows it and the rim
+        // rule below keeps the hit out.
+        let mut taken = vec![false; count];
+        let mut stray = Vec::new();
         for &k in face {
+            for j in beside(k, (columns, rows)).into_iter().flatten() {
+                if !taken[j] && !windowed(j) && hit(j).is_some() && on_face(j) {
+                    taken[j] = true;
+                    stray.push(j);
+                }
+            }
+        }
+        for &k in face.iter().chain(&stray) {
             // A hit on the face's rim may belong to the next surface (the foot
             // of an object standing on a table lies within 3σ of the table):
             // only beams with eight neighbours, none showing another surface,
@@ -188,14 +204,7 @@ fn grow(
         while head < face.len() {
             let k = face[head];
             head += 1;
-            let (row, col) = (k / columns, k % columns);
-            let neighbours = [
-                (col + 1 < columns).then(|| k + 1),
-                (col > 0).then(|| k - 1),
-                (row + 1 < rows).then(|| k + columns),
-                (row > 0).then(|| k - columns),
-            ];
-            for j in neighbours.into_iter().flatten() {
+            for j in beside(k, (columns, rows)).into_iter().flatten() {
                 if !near(j, &normal, &centre) {
                     refused.push(j);
                 } else if claim(j) {
@@ -224,4 +233,16 @@ fn grow(
         }
     }
     face
+}
+
+/// The four raster neighbours of beam `k` (`(columns, rows)`), those that
+/// exist.
+fn beside(k: usize, (columns, rows): (usize, usize)) -> [Option<usize>; 4] {
+    let (row, col) = (k / columns, k % columns);
+    [
+        (col + 1 < columns).then(|| k + 1),
+        (col > 0).then(|| k - 1),
+        (row + 1 < rows).then(|| k + columns),
+        (row > 0).then(|| k - columns),
+    ]
 }

@@ -372,3 +372,33 @@ fn a_face_is_pooled_around_its_dropouts_but_not_at_the_raster_edge() {
     assert_standardised(&errors, 0.72..=1.28, "a dropout's neighbour");
     assert_eq!(at_edge, 0, "the raster's edge pooled on the face");
 }
+
+#[test]
+fn a_hit_whose_window_failed_inside_a_face_is_pooled_on_it() {
+    // A 31×31 raster on the tilted plane with exact ranges, but for three
+    // neighbours of the centre read 2.95σ long, short and long (σ = 2 mm).
+    // Each lies within 3σ of the face's plane, yet together they fail the
+    // centre's window test (χ² ≈ 2.06 × 2.95² = 17.9 > χ²₆(0.99) = 16.8):
+    // the centre, exactly on the plane, keeps its raw range under the
+    // window rule. Beside the face and with no neighbour showing another
+    // surface, it is pooled on the face (σ below a tenth of the noise) at
+    // the plane's range, to within a tenth of its σ (the three readings move
+    // the fitted plane by a few micrometres; the rest are exact).
+    let n = 31;
+    let (directions, truth) = tilted_face(n);
+    let sigma = 0.002;
+    let centre = 15 * n + 15;
+    let mut ranges: Vec<Option<f64>> = truth.iter().map(|&r| Some(r)).collect();
+    for (k, sign) in [(centre - 1, 1.0), (centre + 1, -1.0), (centre - n, 1.0)] {
+        ranges[k] = Some(truth[k] + sign * 2.95 * sigma);
+    }
+    let pooled = pool_ranges(n, &directions, &ranges, |_| sigma, 0.0);
+    let p = pooled[centre].unwrap();
+    assert!(p.sigma < sigma / 10.0, "the centre kept σ {} m", p.sigma);
+    let error = p.range - truth[centre];
+    assert!(
+        error.abs() < 0.1 * p.sigma,
+        "off the plane by {error} m (σ {})",
+        p.sigma
+    );
+}
