@@ -3,6 +3,7 @@
 
 use crate::error::{read_toml_with, Error, Result};
 use crate::geometry::{Isometry3, Pose, Vector3};
+use crate::mapping::pooling::Pooling;
 use crate::mapping::settings::{MapProbabilities, MapSettings};
 use crate::sim::ik::{self, IkOptions, IkTarget};
 use crate::sim::profile::ErrorProfile;
@@ -32,7 +33,7 @@ struct ExperimentFile {
     #[serde(default)]
     grid_offset: bool,
     #[serde(default)]
-    beam_pooling: bool,
+    beam_pooling: PoolingSpec,
     /// `[map]`: each setting may be swept as `experiment.map.<name>` once set.
     #[serde(default)]
     map: MapProbabilities,
@@ -48,6 +49,34 @@ struct ExperimentFile {
     viewpoints: Vec<ViewpointSpec>,
     #[serde(rename = "sweep", default)]
     sweeps: Vec<SweepAxis>,
+}
+
+/// `beam_pooling` as written: `true` / `false`, or a mode's name.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum PoolingSpec {
+    Switch(bool),
+    Named(String),
+}
+
+impl Default for PoolingSpec {
+    fn default() -> Self {
+        Self::Switch(false)
+    }
+}
+
+impl PoolingSpec {
+    /// The mode, or what to write instead.
+    fn pooling(&self) -> std::result::Result<Pooling, String> {
+        match self {
+            PoolingSpec::Switch(false) => Ok(Pooling::Off),
+            PoolingSpec::Switch(true) => Ok(Pooling::Windows),
+            PoolingSpec::Named(name) if name == "faces" => Ok(Pooling::Faces),
+            PoolingSpec::Named(name) => Err(format!(
+                "beam_pooling = \"{name}\": use true (windows and faces), \"faces\" (large planar faces only) or false"
+            )),
+        }
+    }
 }
 
 /// One sweep axis: a numeric field and the values it takes. Fields:
@@ -184,8 +213,8 @@ pub struct Experiment {
     pub grid_offset: bool,
     /// How maps are built: OctoMap's hit, miss and clamp (`[map]`), the
     /// cell model's bounds (`[map]`) and risk level ε (`risk`, off when
-    /// absent; docs/math.md §5.4), and beam pooling (`beam_pooling = true`;
-    /// §5.5). Defaults: OctoMap's and the paper's values.
+    /// absent; docs/math.md §5.4), and beam pooling (`beam_pooling = true`
+    /// or `"faces"`; §5.5). Defaults: OctoMap's and the paper's values.
     pub map: MapSettings,
     /// The sigma-point set of the `unscented` and `correlated` methods: the
     /// paper's, or the scaled set of an `[unscented]` table (docs/math.md
@@ -355,7 +384,8 @@ impl Experiment {
                 file.resolution
             )));
         }
-        let map = MapSettings::new(&file.map, file.risk, file.beam_pooling).map_err(&bad)?;
+        let pooling = file.beam_pooling.pooling().map_err(&bad)?;
+        let map = MapSettings::new(&file.map, file.risk, pooling).map_err(&bad)?;
         let sigma_set = match &file.unscented {
             Some(spec) => SigmaSet::scaled(spec.alpha, spec.beta, spec.kappa)
                 .map_err(|e| bad(format!("[unscented] {e}")))?,
@@ -611,6 +641,25 @@ mod tests {
         assert!(
             mean.iter().all(|c| (0.3 * res..0.7 * res).contains(c)),
             "{mean:?}"
+        );
+    }
+
+    #[test]
+    fn beam_pooling_reads_a_switch_or_a_mode() {
+        #[derive(Deserialize)]
+        struct File {
+            #[serde(default)]
+            beam_pooling: PoolingSpec,
+        }
+        let read = |text: &str| toml::from_str::<File>(text).unwrap().beam_pooling.pooling();
+        assert_eq!(read(""), Ok(Pooling::Off));
+        assert_eq!(read("beam_pooling = false"), Ok(Pooling::Off));
+        assert_eq!(read("beam_pooling = true"), Ok(Pooling::Windows));
+        assert_eq!(read("beam_pooling = \"faces\""), Ok(Pooling::Faces));
+        let error = read("beam_pooling = \"face\"").unwrap_err();
+        assert!(
+            error.starts_with("beam_pooling = \"face\": use true"),
+            "{error}"
         );
     }
 

@@ -9,7 +9,7 @@ use super::Experiment;
 use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Vector3};
 use crate::mapping::merge::merge_with;
-use crate::mapping::pooling::pool_ranges;
+use crate::mapping::pooling::{pool_ranges, Pooling};
 use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::{BeamEnd, GridBuffers};
@@ -205,11 +205,11 @@ fn beam_end(
 
 /// The measured point of each beam in the camera frame with its covariance
 /// (`None` without a hit): the raw range, or with `beam_pooling` the range
-/// pooled on the viewpoint's local plane (docs/math.md §5.5). The same for
-/// every method: compute it once per scan.
+/// pooled on the viewpoint's local plane or face (docs/math.md §5.5). The
+/// same for every method: compute it once per scan.
 pub fn measured_points(view: &MapperView, scan: &Scan) -> Vec<Option<UncertainPoint>> {
     let directions = &view.scanner.directions;
-    if !view.settings.beam_pooling {
+    if view.settings.beam_pooling == Pooling::Off {
         return scan
             .measurements
             .par_iter()
@@ -222,6 +222,7 @@ pub fn measured_points(view: &MapperView, scan: &Scan) -> Vec<Option<UncertainPo
     let ranges: Vec<Option<f64>> = scan.measurements.iter().map(hit).collect();
     let angular_sigma = range.angular_sigma;
     let pooled = pool_ranges(
+        view.settings.beam_pooling,
         view.scanner.columns,
         directions,
         &ranges,
@@ -342,8 +343,8 @@ pub fn build_map_measured(
         let origin = propagator.origin();
         // Each beam's end is computed as it is binned: without pooling its
         // measured point too, so neither is ever held for the whole scan.
-        let pooled =
-            (measured.is_none() && view.settings.beam_pooling).then(|| measured_points(view, scan));
+        let pooled = (measured.is_none() && view.settings.beam_pooling != Pooling::Off)
+            .then(|| measured_points(view, scan));
         let points = measured.map(|m| &m[i]).or(pooled.as_ref());
         let scene_from_camera = chain.nominal().rotation.to_rotation_matrix().into_inner();
         let directions = &view.scanner.directions;
@@ -635,7 +636,7 @@ mod tests {
         let sigma = |r: f64| experiment.profile.range.sigma(r);
         let raw = along(&experiment);
         assert!(raw.iter().all(|(r, s)| (s - sigma(*r)).abs() < 1e-12));
-        experiment.map.beam_pooling = true;
+        experiment.map.beam_pooling = Pooling::Windows;
         let pooled = along(&experiment);
         assert_eq!(pooled.len(), raw.len());
         let narrowed = pooled.iter().filter(|(r, s)| *s < 0.6 * sigma(*r)).count();

@@ -26,18 +26,44 @@ pub struct PooledRange {
 /// A beam's [`PooledRange`], or `None` for a beam without a hit.
 pub type Pooled = Option<PooledRange>;
 
+/// Which beams a viewpoint pools (docs/math.md §5.5).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Pooling {
+    /// None: every hit keeps its measured range.
+    #[default]
+    Off,
+    /// Only the beams inside a large planar face, on the face's plane; the
+    /// windows serve to grow the faces and are not kept. The faces'
+    /// covariances are honest; the windows' are not on curved objects.
+    Faces,
+    /// Every beam whose 3×3 window is one plane, and the faces.
+    Windows,
+}
+
 /// Pools the hits of one viewpoint, on each beam's 3×3 window, then on the
-/// large planar faces grown over those windows. `ranges[k]` is beam k's
+/// large planar faces grown over those windows (with [`Pooling::Faces`],
+/// only the faces' beams keep a pooled range). `ranges[k]` is beam k's
 /// measured range (`None`: no hit), `directions[k]` its unit direction,
 /// beams row by row with `columns` per row; `sigma(r)` is the range noise
 /// at range r and `angular_sigma` the beams' direction noise (rad).
 pub fn pool_ranges(
+    pooling: Pooling,
     columns: usize,
     directions: &[Vector3],
     ranges: &[Option<f64>],
     sigma: impl Fn(f64) -> f64,
     angular_sigma: f64,
 ) -> Vec<Pooled> {
+    let raw = |k: usize| {
+        ranges[k].map(|r| PooledRange {
+            range: r,
+            sigma: sigma(r),
+            normal: None,
+        })
+    };
+    if pooling == Pooling::Off {
+        return (0..ranges.len()).map(raw).collect();
+    }
     let rows = ranges.len() / columns.max(1);
     // Each hit's point and noise, once: a hit sits in up to nine windows.
     let hits: Vec<Option<Neighbour>> = ranges
@@ -66,7 +92,14 @@ pub fn pool_ranges(
         let r = ranges[k].unwrap_or_default();
         out.push(Some(pool_one(&points, &own.direction, r, own.sigma)));
     }
-    faces::pool_faces(columns, directions, &hits, &mut out);
+    let on_faces = faces::pool_faces(columns, directions, &hits, &mut out);
+    if pooling == Pooling::Faces {
+        for (k, slot) in out.iter_mut().enumerate() {
+            if !on_faces[k] {
+                *slot = raw(k);
+            }
+        }
+    }
     out
 }
 

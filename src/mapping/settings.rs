@@ -7,6 +7,7 @@
 use super::chord::CellModel;
 use super::merge::MergeOptions;
 use super::octree::{logodds, Clamp};
+use super::pooling::Pooling;
 use super::ray_update::UpdateRule;
 
 /// How every map of an experiment is built.
@@ -16,9 +17,9 @@ pub struct MapSettings {
     pub update: UpdateRule,
     /// What one beam says about one cell (OPDF methods).
     pub model: CellModel,
-    /// Pool each hit's range with its neighbours on the local plane
-    /// (docs/math.md §5.5; OPDF methods).
-    pub beam_pooling: bool,
+    /// Which hits' ranges are pooled with their neighbours on the surface
+    /// they share (docs/math.md §5.5; OPDF methods).
+    pub beam_pooling: Pooling,
 }
 
 /// The settings as probabilities, the way OctoMap's setters and the
@@ -60,7 +61,7 @@ impl MapSettings {
     pub fn new(
         p: &MapProbabilities,
         risk: Option<f64>,
-        beam_pooling: bool,
+        beam_pooling: Pooling,
     ) -> Result<Self, String> {
         let open = |name: &str, v: f64, lo: f64, hi: f64| {
             if v.is_finite() && v > lo && v < hi {
@@ -122,7 +123,7 @@ mod tests {
 
     #[test]
     fn octomap_probabilities_give_octomap_constants_bit_for_bit() {
-        let settings = MapSettings::new(&MapProbabilities::default(), None, false).unwrap();
+        let settings = MapSettings::new(&MapProbabilities::default(), None, Pooling::Off).unwrap();
         assert_eq!(settings, MapSettings::default());
         assert_eq!(
             settings.update.hit.to_bits(),
@@ -144,7 +145,7 @@ mod tests {
         let bad = |f: fn(&mut MapProbabilities)| {
             let mut p = MapProbabilities::default();
             f(&mut p);
-            MapSettings::new(&p, None, false).unwrap_err()
+            MapSettings::new(&p, None, Pooling::Off).unwrap_err()
         };
         assert!(bad(|p| p.prob_hit = 0.5).starts_with("map.prob_hit = 0.5"));
         assert!(bad(|p| p.prob_miss = f64::NAN).starts_with("map.prob_miss"));
@@ -152,7 +153,7 @@ mod tests {
         assert!(bad(|p| p.clamp_max = 1.0).starts_with("map.clamp_max"));
         assert!(bad(|p| p.p_lo = 0.0).starts_with("map.p_lo"));
         assert!(bad(|p| p.p_hi = 0.4).starts_with("map.p_hi"));
-        let risk = MapSettings::new(&MapProbabilities::default(), Some(0.7), false);
+        let risk = MapSettings::new(&MapProbabilities::default(), Some(0.7), Pooling::Off);
         assert!(risk.unwrap_err().starts_with("risk = 0.7"));
     }
 }

@@ -33,21 +33,22 @@ const MAX_ROUNDS: usize = 32;
 /// Raises `out` (the windows' pooling of the `hits`, beams row by row with
 /// `columns` per row) to the face's plane for every beam inside a planar
 /// face of at least [`MIN_FACE_HITS`] hits, and for the hits beside it on
-/// its plane whose window failed by chance.
+/// its plane whose window failed by chance. Returns which beams it raised.
 pub(super) fn pool_faces(
     columns: usize,
     directions: &[Vector3],
     hits: &[Option<Neighbour>],
     out: &mut [Pooled],
-) {
+) -> Vec<bool> {
+    let mut raised = vec![false; out.len()];
     if columns == 0 {
-        return;
+        return raised;
     }
     // Whole raster rows only.
     let rows = hits.len().min(out.len()).min(directions.len()) / columns;
     let count = rows * columns;
     if count < MIN_FACE_HITS {
-        return;
+        return raised;
     }
     let hit = |k: usize| hits[k].map(|h| h.point);
     let fit = |face: &[usize]| {
@@ -167,9 +168,11 @@ pub(super) fn pool_faces(
             }
             if let Some(pooled) = plane.predict(&directions[k], mean_variance, m) {
                 out[k] = Some(pooled);
+                raised[k] = true;
             }
         }
     }
+    raised
 }
 
 /// The face grown from beam `seed`: breadth first over the four raster

@@ -37,7 +37,7 @@ fn normalised_errors(tilt: f64, sigma: f64, trials: usize) -> Vec<f64> {
                     Some(r + sigma * z)
                 })
                 .collect();
-            let pooled = pool_ranges(3, &directions, &ranges, |_| sigma, 0.0);
+            let pooled = pool_ranges(Pooling::Windows, 3, &directions, &ranges, |_| sigma, 0.0);
             let p = pooled[4].unwrap();
             (p.range - truth[4]) / p.sigma
         })
@@ -91,7 +91,7 @@ fn a_beam_across_an_edge_keeps_its_own_range() {
         let ranges: Vec<Option<f64>> = (0..9)
             .map(|k| Some(if k % 3 == 0 { 0.5 - near } else { 0.5 }))
             .collect();
-        let pooled = pool_ranges(3, &directions, &ranges, |_| 0.002, 0.0);
+        let pooled = pool_ranges(Pooling::Windows, 3, &directions, &ranges, |_| 0.002, 0.0);
         for (k, p) in pooled.iter().enumerate() {
             let r = p.unwrap().range;
             let own = ranges[k].unwrap();
@@ -137,7 +137,15 @@ fn pooled_point_nees(tilt: f64, sigma: f64, angular_sigma: f64, lateral_only: bo
             hits.push(turned * range);
             ranges.push(Some(range + sigma * normal_draw()));
         }
-        let pooled = pool_ranges(3, &directions, &ranges, |_| sigma, angular_sigma).remove(4);
+        let pooled = pool_ranges(
+            Pooling::Windows,
+            3,
+            &directions,
+            &ranges,
+            |_| sigma,
+            angular_sigma,
+        )
+        .remove(4);
         let pooled = pooled.unwrap();
         let d = directions[4];
         let Some(mut covariance) = pooled.covariance(&d, angular_sigma) else {
@@ -239,7 +247,8 @@ fn a_large_face_is_pooled_whole_with_the_variance_it_claims() {
     let errors: Vec<f64> = (0..trials)
         .filter_map(|_| {
             let ranges = noisy(&truth, sigma, &mut rng);
-            let p = pool_ranges(n, &directions, &ranges, |_| sigma, 0.0)[centre].unwrap();
+            let p = pool_ranges(Pooling::Windows, n, &directions, &ranges, |_| sigma, 0.0)[centre]
+                .unwrap();
             (p.sigma < sigma / 10.0).then(|| (p.range - truth[centre]) / p.sigma)
         })
         .collect();
@@ -284,7 +293,7 @@ fn a_plate_lying_on_a_face_is_not_pooled_into_it() {
     let (mut floor_face, mut away_pooled) = (0, 0);
     for _ in 0..50 {
         let ranges = noisy(&truth, sigma, &mut rng);
-        let pooled = pool_ranges(n, &directions, &ranges, |_| sigma, 0.0);
+        let pooled = pool_ranges(Pooling::Windows, n, &directions, &ranges, |_| sigma, 0.0);
         // The floor is pooled as a face away from the plate.
         if pooled[2 * n + 2].unwrap().sigma < sigma / 10.0 {
             away_pooled += 1;
@@ -320,7 +329,8 @@ fn a_face_predicts_a_beam_off_its_centre_without_bias() {
     let errors: Vec<f64> = (0..trials)
         .filter_map(|_| {
             let ranges = noisy(&truth, sigma, &mut rng);
-            let p = pool_ranges(n, &directions, &ranges, |_| sigma, 0.0)[beam].unwrap();
+            let p = pool_ranges(Pooling::Windows, n, &directions, &ranges, |_| sigma, 0.0)[beam]
+                .unwrap();
             // The face's σ (about 0.26 mm), not a window's (0.8 mm).
             (p.sigma < 0.0004).then(|| (p.range - truth[beam]) / p.sigma)
         })
@@ -355,7 +365,7 @@ fn a_face_is_pooled_around_its_dropouts_but_not_at_the_raster_edge() {
         for &k in &dropouts {
             ranges[k] = None;
         }
-        let pooled = pool_ranges(n, &directions, &ranges, |_| sigma, 0.0);
+        let pooled = pool_ranges(Pooling::Windows, n, &directions, &ranges, |_| sigma, 0.0);
         if pooled[edge].unwrap().sigma < sigma / 10.0 {
             at_edge += 1;
         }
@@ -392,7 +402,7 @@ fn a_hit_whose_window_failed_inside_a_face_is_pooled_on_it() {
     for (k, sign) in [(centre - 1, 1.0), (centre + 1, -1.0), (centre - n, 1.0)] {
         ranges[k] = Some(truth[k] + sign * 2.95 * sigma);
     }
-    let pooled = pool_ranges(n, &directions, &ranges, |_| sigma, 0.0);
+    let pooled = pool_ranges(Pooling::Windows, n, &directions, &ranges, |_| sigma, 0.0);
     let p = pooled[centre].unwrap();
     assert!(p.sigma < sigma / 10.0, "the centre kept σ {} m", p.sigma);
     let error = p.range - truth[centre];
@@ -401,4 +411,55 @@ fn a_hit_whose_window_failed_inside_a_face_is_pooled_on_it() {
         "off the plane by {error} m (σ {})",
         p.sigma
     );
+}
+
+#[test]
+fn faces_only_keeps_a_face_and_drops_the_windows() {
+    // `Pooling::Faces` keeps the pooled range of the beams a large face
+    // takes, exactly as `Pooling::Windows` gives it, and every other hit's
+    // measured range and σ. On a 9×9 patch (81 hits, under the 200 a face
+    // needs) nothing is pooled, though most of its windows pool under
+    // `Windows`; on a 31×31 face at least 80% of the beams are (all but the
+    // raster's edge, 120 beams, and a few beside failed windows).
+    let sigma = 0.002;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+    for (n, face) in [(9, false), (31, true)] {
+        let (directions, truth) = tilted_face(n);
+        let ranges = noisy(&truth, sigma, &mut rng);
+        let pool = |mode| pool_ranges(mode, n, &directions, &ranges, |_| sigma, 0.0);
+        let (windows, faces) = (pool(Pooling::Windows), pool(Pooling::Faces));
+        let mut on_face = 0;
+        for k in 0..n * n {
+            let (w, f) = (windows[k].unwrap(), faces[k].unwrap());
+            if f.normal.is_some() {
+                assert_eq!(f, w, "beam {k}: a face's beam as the windows mode has it");
+                assert!(
+                    f.sigma < sigma / 10.0,
+                    "beam {k}: pooled, but not on a face"
+                );
+                on_face += 1;
+            } else {
+                let raw = PooledRange {
+                    range: ranges[k].unwrap(),
+                    sigma,
+                    normal: None,
+                };
+                assert_eq!(f, raw, "beam {k}: off the faces, the measured range");
+            }
+        }
+        let windowed = windows
+            .iter()
+            .filter(|w| w.unwrap().normal.is_some())
+            .count();
+        if face {
+            assert!(
+                on_face * 10 >= n * n * 8,
+                "{on_face} of {} on the face",
+                n * n
+            );
+        } else {
+            assert_eq!(on_face, 0, "a patch of {} hits pooled", n * n);
+            assert!(windowed * 2 > n * n, "only {windowed} windows pooled");
+        }
+    }
 }
