@@ -152,10 +152,7 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> Po
     if points.len() < 5 {
         return raw;
     }
-    let noise = points
-        .iter()
-        .fold(Matrix3::zeros(), |a, p| a + p.covariance);
-    let Some(plane) = fit_plane(points.iter().map(|p| p.point), &noise) else {
+    let Some(plane) = fit_plane(points.iter()) else {
         return raw;
     };
     let normal_variance_of = |p: &Neighbour| p.normal_variance(&plane.normal);
@@ -248,18 +245,19 @@ impl Plane {
     }
 }
 
-/// The plane of ≥ 4 points (`None` when they are degenerate: all on a
-/// line), from their scatter less the scatter their noise adds:
-/// `S − (m − 1)/m · Σ_j C_j`, with `noise` = `Σ_j C_j` the sum of the points'
-/// covariances. Range noise lies along each beam, not along the normal, and
+/// The plane of ≥ 4 hits (`None` when they are degenerate: all on a
+/// line), from their points' scatter less the scatter their noise adds:
+/// `S − (m − 1)/m · Σ_j C_j`, `C_j` the hits' covariances. Range noise lies along each beam, not along the normal, and
 /// on a slanted plane it tilts the plain total-least-squares plane: a face's
 /// prediction at a beam off its centroid was then biased by half its σ
 /// (docs/math.md §5.5); removing the noise's share makes the fit consistent.
-fn fit_plane(points: impl Iterator<Item = Vector3> + Clone, noise: &Matrix3) -> Option<Plane> {
-    let n = points.clone().count();
+fn fit_plane<'a>(hits: impl Iterator<Item = &'a Neighbour> + Clone) -> Option<Plane> {
+    let n = hits.clone().count();
     if n < 4 {
         return None;
     }
+    let noise = hits.clone().fold(Matrix3::zeros(), |a, h| a + h.covariance);
+    let points = hits.map(|h| h.point);
     let centroid = points.clone().fold(Vector3::zeros(), |a, p| a + p) / n as f64;
     let scatter = points.fold(Matrix3::zeros(), |a, p| {
         let d = p - centroid;

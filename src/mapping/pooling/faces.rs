@@ -9,7 +9,7 @@
 //! whose own window failed by chance).
 
 use super::{fit_plane, Neighbour, Plane, Pooled};
-use crate::geometry::{Matrix3, Vector3};
+use crate::geometry::Vector3;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Hits a face needs before its plane replaces the windows'. [DESIGN]
@@ -51,13 +51,7 @@ pub(super) fn pool_faces(
         return raised;
     }
     let hit = |k: usize| hits[k].map(|h| h.point);
-    let fit = |face: &[usize]| {
-        let noise = face
-            .iter()
-            .filter_map(|&k| hits[k])
-            .fold(Matrix3::zeros(), |a, h| a + h.covariance);
-        fit_plane(face.iter().filter_map(|&k| hit(k)), &noise)
-    };
+    let fit = |face: &[usize]| fit_plane(face.iter().filter_map(|&k| hits[k].as_ref()));
     let variance_along =
         |k: usize, normal: &Vector3| hits[k].map_or(0.0, |h| h.normal_variance(normal));
     // Only a beam whose own window was one plane plus noise may seed or join

@@ -216,6 +216,17 @@ fn plane_ranges(directions: &[Vector3], normal: &Vector3) -> Vec<f64> {
     directions.iter().map(|d| offset / normal.dot(d)).collect()
 }
 
+/// Windows and faces pooled over an `n`-column raster with range noise
+/// `sigma` and no direction noise.
+fn pool_raster(
+    n: usize,
+    directions: &[Vector3],
+    ranges: &[Option<f64>],
+    sigma: f64,
+) -> Vec<Pooled> {
+    pool_ranges(Pooling::Windows, n, directions, ranges, |_| sigma, 0.0)
+}
+
 /// An `n`×`n` raster ([`raster`]) on a plane tilted by 34° (0.6 rad) about
 /// the raster's vertical axis, 0.5 m ahead: the directions and the true
 /// ranges.
@@ -247,8 +258,7 @@ fn a_large_face_is_pooled_whole_with_the_variance_it_claims() {
     let errors: Vec<f64> = (0..trials)
         .filter_map(|_| {
             let ranges = noisy(&truth, sigma, &mut rng);
-            let p = pool_ranges(Pooling::Windows, n, &directions, &ranges, |_| sigma, 0.0)[centre]
-                .unwrap();
+            let p = pool_raster(n, &directions, &ranges, sigma)[centre].unwrap();
             (p.sigma < sigma / 10.0).then(|| (p.range - truth[centre]) / p.sigma)
         })
         .collect();
@@ -293,7 +303,7 @@ fn a_plate_lying_on_a_face_is_not_pooled_into_it() {
     let (mut floor_face, mut away_pooled) = (0, 0);
     for _ in 0..50 {
         let ranges = noisy(&truth, sigma, &mut rng);
-        let pooled = pool_ranges(Pooling::Windows, n, &directions, &ranges, |_| sigma, 0.0);
+        let pooled = pool_raster(n, &directions, &ranges, sigma);
         // The floor is pooled as a face away from the plate.
         if pooled[2 * n + 2].unwrap().sigma < sigma / 10.0 {
             away_pooled += 1;
@@ -329,8 +339,7 @@ fn a_face_predicts_a_beam_off_its_centre_without_bias() {
     let errors: Vec<f64> = (0..trials)
         .filter_map(|_| {
             let ranges = noisy(&truth, sigma, &mut rng);
-            let p = pool_ranges(Pooling::Windows, n, &directions, &ranges, |_| sigma, 0.0)[beam]
-                .unwrap();
+            let p = pool_raster(n, &directions, &ranges, sigma)[beam].unwrap();
             // The face's σ (about 0.26 mm), not a window's (0.8 mm).
             (p.sigma < 0.0004).then(|| (p.range - truth[beam]) / p.sigma)
         })
@@ -365,7 +374,7 @@ fn a_face_is_pooled_around_its_dropouts_but_not_at_the_raster_edge() {
         for &k in &dropouts {
             ranges[k] = None;
         }
-        let pooled = pool_ranges(Pooling::Windows, n, &directions, &ranges, |_| sigma, 0.0);
+        let pooled = pool_raster(n, &directions, &ranges, sigma);
         if pooled[edge].unwrap().sigma < sigma / 10.0 {
             at_edge += 1;
         }
@@ -402,7 +411,7 @@ fn a_hit_whose_window_failed_inside_a_face_is_pooled_on_it() {
     for (k, sign) in [(centre - 1, 1.0), (centre + 1, -1.0), (centre - n, 1.0)] {
         ranges[k] = Some(truth[k] + sign * 2.95 * sigma);
     }
-    let pooled = pool_ranges(Pooling::Windows, n, &directions, &ranges, |_| sigma, 0.0);
+    let pooled = pool_raster(n, &directions, &ranges, sigma);
     let p = pooled[centre].unwrap();
     assert!(p.sigma < sigma / 10.0, "the centre kept σ {} m", p.sigma);
     let error = p.range - truth[centre];
