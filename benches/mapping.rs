@@ -5,13 +5,15 @@
 //! (16 bytes per node + 64 per inner node); then one map built on two
 //! cores against one (same tree asserted), beside what two cores give on
 //! pure computation and on memory bandwidth in the same run (this machine's
-//! ceiling for that ratio). The side-by-side run against
+//! ceiling for that ratio); then what beam pooling adds, beside the
+//! insertion. The side-by-side run against
 //! OctoMap itself is `bash benches/octomap/compare.sh`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use sigmap::experiment::model::{build_map, MapperView, Method};
+use sigmap::experiment::model::{build_map, measured_points, MapperView, Method};
 use sigmap::experiment::{simulate, Experiment};
 use sigmap::geometry::Vector3;
+use sigmap::mapping::pooling::Pooling;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -19,7 +21,7 @@ use std::time::{Duration, Instant};
 const RESOLUTION: f64 = 0.02;
 
 fn bench(c: &mut Criterion) {
-    let experiment = Experiment::load(Path::new(concat!(
+    let mut experiment = Experiment::load(Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/experiments/quickstart.toml"
     )))
@@ -68,7 +70,11 @@ fn bench(c: &mut Criterion) {
     let seconds = |method| seconds_on(&pool, method);
     let baseline = seconds(Method::RayUpdate);
     println!("\ninsertion of {beams} beams at {RESOLUTION} m, one core (ratio: beams/s against the ray update):");
-    for method in Method::ALL {
+    // The registered truth is a scoring reference, not a mapper of scans.
+    for method in Method::ALL
+        .into_iter()
+        .filter(|&m| m != Method::RegisteredTruth)
+    {
         let s = if method == Method::RayUpdate {
             baseline
         } else {
@@ -107,6 +113,40 @@ fn bench(c: &mut Criterion) {
         );
     }
     two_core_ceiling(&pool, &two);
+
+    // Beam pooling (docs/math.md §5.5) works on each scan's raster before
+    // the insertion: its cost beside the insertion it feeds.
+    let insertion = seconds(Method::Unscented);
+    println!(
+        "\nbeam pooling of the same scans (ratio: its time / the unscented insertion without it, {:.3} s, one core):",
+        insertion
+    );
+    for pooling in [Pooling::Faces, Pooling::Windows] {
+        experiment.map.beam_pooling = pooling;
+        let view = MapperView::of(&experiment);
+        let pool_scans = |pool: &rayon::ThreadPool| {
+            pool.install(|| {
+                let start = Instant::now();
+                let mut reps = 0;
+                while reps < 3 || start.elapsed() < Duration::from_secs(1) {
+                    for scan in &run.scans {
+                        black_box(measured_points(&view, scan));
+                    }
+                    reps += 1;
+                }
+                start.elapsed().as_secs_f64() / reps as f64
+            })
+        };
+        let (one_core, two_cores) = (pool_scans(&pool), pool_scans(&two));
+        println!(
+            "  {:<11} {:6.3} s on one core ({:4.2}x), {:6.3} s on two: {:5.2}x",
+            format!("{pooling:?}").to_lowercase(),
+            one_core,
+            one_core / insertion,
+            two_cores,
+            one_core / two_cores
+        );
+    }
 }
 
 /// What two cores can give at best on this machine, measured beside the

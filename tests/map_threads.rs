@@ -1,21 +1,22 @@
 //! One map built on one thread and on several: the same tree, value for
 //! value (the merge's parallel search and the ray update's parallel walk
-//! must not depend on how the work was split or which thread came first).
+//! must not depend on how the work was split or which thread came first;
+//! nor must the beam pooling's parallel windows).
 
 use sigmap::experiment::model::{build_map, MapperView, Method};
 use sigmap::experiment::{simulate, Experiment};
 use sigmap::geometry::Vector3;
+use sigmap::mapping::pooling::Pooling;
 use std::path::Path;
 
 #[test]
 fn a_map_is_the_same_on_one_thread_and_on_three() {
-    let experiment = Experiment::load(Path::new(concat!(
+    let mut experiment = Experiment::load(Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/experiments/quickstart.toml"
     )))
     .expect("quickstart");
     let run = simulate(&experiment, 1, |_| {}).expect("simulate");
-    let view = MapperView::of(&experiment);
     let pool = |threads| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -23,29 +24,39 @@ fn a_map_is_the_same_on_one_thread_and_on_three() {
             .expect("pool")
     };
     let (one, three) = (pool(1), pool(3));
-    // 1 cm: tasks of 16³ cells; 5 cm: of 2³.
-    for resolution in [0.01, 0.05] {
-        for method in [Method::RayUpdate, Method::Unscented, Method::Correlated] {
-            let build = |pool: &rayon::ThreadPool| {
-                pool.install(|| {
-                    build_map(&view, &run.scans, method, resolution, &Vector3::zeros())
-                        .expect("the quickstart maps")
-                })
-            };
-            let (a, b) = (build(&one), build(&three));
-            let (la, lb) = (a.leaves(), b.leaves());
-            assert!(
-                la.len() > 1000,
-                "{method:?} at {resolution}: {} leaves",
-                la.len()
-            );
-            let differ = la.iter().zip(&lb).filter(|(x, y)| x != y).count();
-            assert!(
-                la.len() == lb.len() && differ == 0,
-                "{method:?} at {resolution} m: {} vs {} leaves, {differ} differ",
-                la.len(),
-                lb.len()
-            );
-        }
+    // 1 cm: tasks of 16³ cells; 5 cm: of 2³; the pooled map at 2 cm.
+    let cases = [
+        (Pooling::Off, 0.01, Method::RayUpdate),
+        (Pooling::Off, 0.01, Method::Unscented),
+        (Pooling::Off, 0.01, Method::Correlated),
+        (Pooling::Off, 0.05, Method::RayUpdate),
+        (Pooling::Off, 0.05, Method::Unscented),
+        (Pooling::Off, 0.05, Method::Correlated),
+        (Pooling::Windows, 0.02, Method::Unscented),
+        (Pooling::Faces, 0.02, Method::Unscented),
+    ];
+    for (pooling, resolution, method) in cases {
+        experiment.map.beam_pooling = pooling;
+        let view = MapperView::of(&experiment);
+        let build = |pool: &rayon::ThreadPool| {
+            pool.install(|| {
+                build_map(&view, &run.scans, method, resolution, &Vector3::zeros())
+                    .expect("the quickstart maps")
+            })
+        };
+        let (a, b) = (build(&one), build(&three));
+        let (la, lb) = (a.leaves(), b.leaves());
+        assert!(
+            la.len() > 1000,
+            "{method:?} at {resolution}: {} leaves",
+            la.len()
+        );
+        let differ = la.iter().zip(&lb).filter(|(x, y)| x != y).count();
+        assert!(
+            la.len() == lb.len() && differ == 0,
+            "{method:?} at {resolution} m ({pooling:?}): {} vs {} leaves, {differ} differ",
+            la.len(),
+            lb.len()
+        );
     }
 }

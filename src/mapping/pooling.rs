@@ -10,6 +10,7 @@
 //! hundredths of a millimetre.
 
 use crate::geometry::{Matrix3, Vector3};
+use rayon::prelude::*;
 
 /// A beam's pooled range, its standard deviation (m) and the normal of the
 /// plane it was pooled on (`None`: the raw range was kept).
@@ -51,7 +52,7 @@ pub fn pool_ranges(
     columns: usize,
     directions: &[Vector3],
     ranges: &[Option<f64>],
-    sigma: impl Fn(f64) -> f64,
+    sigma: impl Fn(f64) -> f64 + Sync,
     angular_sigma: f64,
 ) -> Vec<Pooled> {
     let raw = |k: usize| {
@@ -67,31 +68,20 @@ pub fn pool_ranges(
     let rows = ranges.len() / columns.max(1);
     // Each hit's point and noise, once: a hit sits in up to nine windows.
     let hits: Vec<Option<Neighbour>> = ranges
-        .iter()
+        .par_iter()
         .zip(directions)
         .map(|(r, d)| r.map(|r| Neighbour::new(d, r, sigma(r), r * angular_sigma)))
         .collect();
-    let mut out = Vec::with_capacity(ranges.len());
-    let mut points: Vec<Neighbour> = Vec::with_capacity(9);
-    for k in 0..ranges.len() {
-        let Some(own) = hits[k] else {
-            out.push(None);
-            continue;
-        };
-        let (row, col) = ((k / columns) as i64, (k % columns) as i64);
-        points.clear();
-        for dr in -1..=1i64 {
-            for dc in -1..=1i64 {
-                let (rr, cc) = (row + dr, col + dc);
-                if rr < 0 || cc < 0 || rr >= rows as i64 || cc >= columns as i64 {
-                    continue;
-                }
-                points.extend(hits[rr as usize * columns + cc as usize]);
-            }
-        }
-        let r = ranges[k].unwrap_or_default();
-        out.push(Some(pool_one(&points, &own.direction, r, own.sigma)));
-    }
+    // The windows are independent of each other: spread over the threads,
+    // collected in beam order (the same result on any number of threads).
+    let mut out: Vec<Pooled> = (0..ranges.len())
+        .into_par_iter()
+        .with_min_len(columns.max(1))
+        .map_init(
+            || Vec::with_capacity(9),
+            |points, k| pool_window(&hits, ranges, (columns, rows), points, k),
+        )
+        .collect();
     let on_faces = faces::pool_faces(columns, directions, &hits, &mut out);
     if pooling == Pooling::Faces {
         for (k, slot) in out.iter_mut().enumerate() {
@@ -101,6 +91,31 @@ pub fn pool_ranges(
         }
     }
     out
+}
+
+/// Beam `k`'s [`pool_one`] on its 3×3 raster window of `hits`
+/// (`(columns, rows)`; `points`: a buffer for the window).
+fn pool_window<'h>(
+    hits: &'h [Option<Neighbour>],
+    ranges: &[Option<f64>],
+    (columns, rows): (usize, usize),
+    points: &mut Vec<&'h Neighbour>,
+    k: usize,
+) -> Pooled {
+    let own = hits[k].as_ref()?;
+    let (row, col) = ((k / columns) as i64, (k % columns) as i64);
+    points.clear();
+    for dr in -1..=1i64 {
+        for dc in -1..=1i64 {
+            let (rr, cc) = (row + dr, col + dc);
+            if rr < 0 || cc < 0 || rr >= rows as i64 || cc >= columns as i64 {
+                continue;
+            }
+            points.extend(&hits[rr as usize * columns + cc as usize]);
+        }
+    }
+    let r = ranges[k].unwrap_or_default();
+    Some(pool_one(points, &own.direction, r, own.sigma))
 }
 
 /// The variance along the plane normal `normal` of a hit along `direction`
@@ -143,7 +158,7 @@ const CHI2_99: [f64; 6] = [6.635, 9.210, 11.345, 13.277, 15.086, 16.812];
 /// residuals at 99%, at least 5 points) is pooled; anything else (an edge, a
 /// second surface, a corner) keeps the raw range. Dropping points until the
 /// test passes would bias the variance; refusing does not.
-fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> PooledRange {
+fn pool_one(points: &[&Neighbour], direction: &Vector3, r: f64, sigma: f64) -> PooledRange {
     let raw = PooledRange {
         range: r,
         sigma,
@@ -152,15 +167,19 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> Po
     if points.len() < 5 {
         return raw;
     }
-    let Some(plane) = fit_plane(points.iter()) else {
+    let Some(plane) = fit_plane(points.iter().copied()) else {
         return raw;
     };
-    let normal_variance_of = |p: &Neighbour| p.normal_variance(&plane.normal);
+    // Each point's noise variance along the normal, once (at most nine).
+    let mut variances = [0.0; 9];
+    for (v, p) in variances.iter_mut().zip(points) {
+        *v = p.normal_variance(&plane.normal);
+    }
+    let variances = &variances[..points.len().min(9)];
     let chi2: f64 = points
         .iter()
-        .map(|p| {
-            plane.distance(&p.point).powi(2) / normal_variance_of(p).max((1e-3 * p.sigma).powi(2))
-        })
+        .zip(variances)
+        .map(|(p, v)| plane.distance(&p.point).powi(2) / v.max((1e-3 * p.sigma).powi(2)))
         .sum();
     if chi2 > CHI2_99[points.len() - 4] {
         return raw;
@@ -171,7 +190,7 @@ fn pool_one(points: &[Neighbour], direction: &Vector3, r: f64, sigma: f64) -> Po
         return raw;
     }
     let n = points.len() as f64;
-    let mean_variance = points.iter().map(normal_variance_of).sum::<f64>() / n;
+    let mean_variance = variances.iter().sum::<f64>() / n;
     plane.predict(direction, mean_variance, n).unwrap_or(raw)
 }
 
@@ -252,15 +271,18 @@ impl Plane {
 /// prediction at a beam off its centroid was then biased by half its σ
 /// (docs/math.md §5.5); removing the noise's share makes the fit consistent.
 fn fit_plane<'a>(hits: impl Iterator<Item = &'a Neighbour> + Clone) -> Option<Plane> {
-    let n = hits.clone().count();
+    // The count, the noise and the points' sum in one pass (a face's hits
+    // are scattered in memory), the scatter about their centroid in another.
+    let (n, noise, sum) = hits.clone().fold(
+        (0usize, Matrix3::zeros(), Vector3::zeros()),
+        |(n, noise, sum), h| (n + 1, noise + h.covariance, sum + h.point),
+    );
     if n < 4 {
         return None;
     }
-    let noise = hits.clone().fold(Matrix3::zeros(), |a, h| a + h.covariance);
-    let points = hits.map(|h| h.point);
-    let centroid = points.clone().fold(Vector3::zeros(), |a, p| a + p) / n as f64;
-    let scatter = points.fold(Matrix3::zeros(), |a, p| {
-        let d = p - centroid;
+    let centroid = sum / n as f64;
+    let scatter = hits.fold(Matrix3::zeros(), |a, h| {
+        let d = h.point - centroid;
         a + d * d.transpose()
     }) - noise * ((n - 1) as f64 / n as f64);
     let eig = scatter.symmetric_eigen();
