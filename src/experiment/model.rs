@@ -271,9 +271,10 @@ pub fn build_map(
     build_map_measured(view, scans, None, method, resolution, offset)
 }
 
-/// [`build_map`] from the scans' [`measured_points`] (one per scan; unused
-/// by the ray update), when they are computed once for all methods of a
-/// run; `None`: each beam's is computed as its grid is built (with
+/// [`build_map`] from the scans' [`measured_points`] (one per scan; the ray
+/// update's rays end at them only with `beam_pooling`, and otherwise at the
+/// raw hits, as OctoMap's), when they are computed once for all methods of
+/// a run; `None`: each beam's is computed as its grid is built (with
 /// `beam_pooling`, each scan's, and dropped with its grid).
 pub fn build_map_measured(
     view: &MapperView,
@@ -298,22 +299,28 @@ pub fn build_map_measured(
         // tree's geometry alone) while scan i's are applied.
         let geometry = Octree::new(resolution);
         let (mut hits, mut misses) = (Vec::new(), Vec::new());
-        let mut find = |updater: &mut RayUpdater, scan: &Scan| {
-            let origin = ray_inputs_into(view, scan, &mut hits, &mut misses) + offset;
+        let pooling = view.settings.beam_pooling != Pooling::Off;
+        let mut find = |updater: &mut RayUpdater, i: usize| {
+            let scan = &scans[i];
+            // With beam pooling the rays end at the pooled points.
+            let pooled = (pooling && measured.is_none()).then(|| measured_points(view, scan));
+            let points = measured.map(|m| &m[i][..]).or(pooled.as_deref());
+            let points = points.filter(|_| pooling);
+            let origin = ray_inputs_into(view, scan, points, &mut hits, &mut misses) + offset;
             hits.iter_mut().for_each(|h| *h += offset);
             updater.find_cells(&geometry, &origin, &hits, &misses, max_range);
         };
         let mut current = RayUpdater::new(view.settings.update);
         let mut next = RayUpdater::new(view.settings.update);
-        if let Some(first) = scans.first() {
-            find(&mut current, first);
+        if !scans.is_empty() {
+            find(&mut current, 0);
         }
         for i in 0..scans.len() {
             rayon::join(
                 || current.apply(&mut tree),
                 || {
-                    if let Some(scan) = scans.get(i + 1) {
-                        find(&mut next, scan);
+                    if i + 1 < scans.len() {
+                        find(&mut next, i + 1);
                     }
                 },
             );
@@ -476,24 +483,36 @@ fn shared_covariance(
 /// scan, in the scene frame (what OctoMap's `insertPointCloud` is given).
 pub fn ray_inputs(view: &MapperView, scan: &Scan) -> (Point3, Vec<Point3>, Vec<Vector3>) {
     let (mut hits, mut misses) = (Vec::new(), Vec::new());
-    let origin = ray_inputs_into(view, scan, &mut hits, &mut misses);
+    let origin = ray_inputs_into(view, scan, None, &mut hits, &mut misses);
     (origin, hits, misses)
 }
 
 /// [`ray_inputs`] into buffers of the caller's (reused from scan to scan:
-/// fresh ones cost a page fault every 4 KiB).
+/// fresh ones cost a page fault every 4 KiB); with `points` (the scan's
+/// [`measured_points`], pooled), each hit ends at its measured point.
 pub fn ray_inputs_into(
     view: &MapperView,
     scan: &Scan,
+    points: Option<&[Option<UncertainPoint>]>,
     hits: &mut Vec<Point3>,
     misses: &mut Vec<Vector3>,
 ) -> Point3 {
     let pose = scan.chain.scene_from_camera();
     hits.clear();
     misses.clear();
-    for (m, d) in scan.measurements.iter().zip(&view.scanner.directions) {
+    for (k, (m, d)) in scan
+        .measurements
+        .iter()
+        .zip(&view.scanner.directions)
+        .enumerate()
+    {
         match m.status {
-            BeamStatus::Hit => hits.push(pose * Point3::from(d * m.range)),
+            BeamStatus::Hit => {
+                let local = points
+                    .and_then(|points| points[k].as_ref())
+                    .map_or_else(|| d * m.range, |p| p.mean);
+                hits.push(pose * Point3::from(local));
+            }
             BeamStatus::NoReturn => misses.push(pose.rotation * d),
             _ => {}
         }
@@ -645,6 +664,76 @@ mod tests {
             "{narrowed} of {} hits pooled",
             pooled.len()
         );
+    }
+
+    #[test]
+    fn the_ray_update_ends_its_rays_at_the_pooled_points() {
+        let mut experiment = quickstart();
+        let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+        let resolution = 0.02;
+        let ray_map = |e: &Experiment| {
+            build_map(
+                &MapperView::of(e),
+                &run.scans,
+                Method::RayUpdate,
+                resolution,
+                &Vector3::zeros(),
+            )
+            .unwrap()
+            .leaves()
+        };
+        let raw = ray_map(&experiment);
+        experiment.map.beam_pooling = Pooling::Faces;
+        let view = MapperView::of(&experiment);
+        // OctoMap's update, scan by scan, of rays ending at the pooled points.
+        let mut expected = Octree::new(resolution);
+        for scan in &run.scans {
+            let points = measured_points(&view, scan);
+            let pose = scan.chain.scene_from_camera();
+            let (mut hits, mut misses) = (Vec::new(), Vec::new());
+            for ((m, d), p) in scan
+                .measurements
+                .iter()
+                .zip(&view.scanner.directions)
+                .zip(&points)
+            {
+                match m.status {
+                    BeamStatus::Hit => hits.push(pose * Point3::from(p.as_ref().unwrap().mean)),
+                    BeamStatus::NoReturn => misses.push(pose.rotation * d),
+                    _ => {}
+                }
+            }
+            let origin = Point3::from(pose.translation.vector);
+            RayUpdater::new(view.settings.update).insert_scan(
+                &mut expected,
+                &origin,
+                &hits,
+                &misses,
+                view.scanner.max_range,
+            );
+        }
+        let pooled = ray_map(&experiment);
+        assert!(
+            pooled == expected.leaves(),
+            "the ray update ignored the pooled points"
+        );
+        assert!(pooled != raw);
+        // The same when the run hands every method the scans' points.
+        let measured: Vec<_> = run
+            .scans
+            .iter()
+            .map(|s| measured_points(&view, s))
+            .collect();
+        let shared = build_map_measured(
+            &view,
+            &run.scans,
+            Some(&measured),
+            Method::RayUpdate,
+            resolution,
+            &Vector3::zeros(),
+        )
+        .unwrap();
+        assert!(shared.leaves() == pooled);
     }
 
     #[test]
