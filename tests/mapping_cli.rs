@@ -78,6 +78,15 @@ fn bad_map_requests_exit_2() {
     ]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains(".bt or .ot"));
+    let out = sigmap(&[
+        "map",
+        "experiments/quickstart.toml",
+        "--beam-pooling",
+        "face",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("use faces, windows or off"), "{stderr}");
     assert!(!bad.exists());
 }
 

@@ -28,7 +28,10 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
                 .into(),
         ));
     }
-    let experiment = Experiment::load(experiment)?;
+    let mut experiment = Experiment::load(experiment)?;
+    if let Some(pooling) = args.beam_pooling {
+        experiment.map.beam_pooling = pooling;
+    }
     let resolution = resolution_arg(args.resolution.unwrap_or(experiment.resolution))?;
     let seed = args.run.seed.unwrap_or(experiment.seed);
     let out = args.out.clone().unwrap_or_else(|| {
@@ -116,7 +119,10 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
         max_range: args.max_range,
         angular_step,
     };
-    let settings = MapSettings::default();
+    let settings = MapSettings {
+        beam_pooling: args.beam_pooling.unwrap_or_default(),
+        ..MapSettings::default()
+    };
     let bar = progress_bar(nodes.len(), "mapping scans", args.run.quiet);
     let start = Instant::now();
     let tree = with_threads(args.run.threads, || {

@@ -200,6 +200,12 @@ pub(crate) struct MapArgs {
     /// the median spacing of neighbouring points, a regular scanner's step].
     #[arg(long, requires = "scans")]
     angular_step: Option<f64>,
+    /// Pool each scan's beams on the surfaces they share (docs/math.md
+    /// §5.5), for every method: faces (large planar faces only), windows
+    /// (every beam's 3x3 neighbourhood too) or off [default: the
+    /// experiment's `beam_pooling`; with --scans off].
+    #[arg(long, value_parser = parse_pooling)]
+    beam_pooling: Option<crate::mapping::pooling::Pooling>,
     #[command(flatten)]
     run: RunOptions,
 }
@@ -344,6 +350,16 @@ fn parse_shard(text: &str) -> std::result::Result<(usize, usize), String> {
         return Err(format!("shard {i}/{n} is out of range: use 1 <= i <= n"));
     }
     Ok((i, n))
+}
+
+fn parse_pooling(text: &str) -> std::result::Result<crate::mapping::pooling::Pooling, String> {
+    use crate::mapping::pooling::Pooling;
+    match text {
+        "off" => Ok(Pooling::Off),
+        "faces" => Ok(Pooling::Faces),
+        "windows" => Ok(Pooling::Windows),
+        _ => Err("use faces, windows or off".into()),
+    }
 }
 
 fn parse_point(text: &str) -> std::result::Result<[f64; 3], String> {

@@ -217,15 +217,34 @@ pub fn measured_points(view: &MapperView, scan: &Scan) -> Vec<Option<UncertainPo
             .map(|(m, d)| raw_point(view.range, m, d))
             .collect();
     }
-    let range = view.range;
     let hit = |m: &Measurement| (m.status == BeamStatus::Hit).then_some(m.range);
     let ranges: Vec<Option<f64>> = scan.measurements.iter().map(hit).collect();
-    let angular_sigma = range.angular_sigma;
-    let pooled = pool_ranges(
+    pooled_points(
         view.settings.beam_pooling,
         view.scanner.columns,
         directions,
         &ranges,
+        view.range,
+    )
+}
+
+/// The measured points of one raster of beams, pooled as `pooling` asks
+/// (docs/math.md §5.5): `ranges[k]` is beam k's measured range (`None`: no
+/// hit) along the unit camera-frame `directions[k]`, row by row with
+/// `columns` per row; each hit's camera-frame point with its covariance.
+pub fn pooled_points(
+    pooling: Pooling,
+    columns: usize,
+    directions: &[Vector3],
+    ranges: &[Option<f64>],
+    range: &RangeModel,
+) -> Vec<Option<UncertainPoint>> {
+    let angular_sigma = range.angular_sigma;
+    let pooled = pool_ranges(
+        pooling,
+        columns,
+        directions,
+        ranges,
         |r| range.sigma(r),
         angular_sigma,
     );

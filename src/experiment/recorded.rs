@@ -19,12 +19,13 @@
 //! of a regular scanner; `--angular-step` overrides it.
 
 use super::model::{
-    propagator, split_chain, take_shared_motion, Method, REGISTERED_TRUTH_FROM_SCANS,
+    pooled_points, propagator, split_chain, take_shared_motion, Method, REGISTERED_TRUTH_FROM_SCANS,
 };
 use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Pose, Vector3};
 use crate::mapping::merge::merge;
 use crate::mapping::octree::Octree;
+use crate::mapping::pooling::Pooling;
 use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::scan_graph::{parse_scan_graph, ScanNode};
 use crate::mapping::settings::MapSettings;
@@ -125,10 +126,31 @@ pub fn map_recorded(
         let mut updater = RayUpdater::new(settings.update);
         for (k, node) in nodes.iter().enumerate() {
             let origin = Point3::from(node.map_from_sensor.translation.vector);
+            // With beam pooling a hit's ray ends at its pooled point.
+            let measured = match settings.beam_pooling {
+                Pooling::Off => None,
+                pooling => {
+                    let grids = node_grids(node, options.angular_step)?;
+                    Some(node_points(
+                        node,
+                        &grids,
+                        &profile.range,
+                        pooling,
+                        max_range,
+                    )?)
+                }
+            };
             let hits: Vec<Point3> = node
                 .points
                 .iter()
-                .map(|p| node.map_from_sensor * p)
+                .enumerate()
+                .map(|(i, p)| {
+                    let point = measured
+                        .as_ref()
+                        .and_then(|m| m[i].as_ref())
+                        .map_or(*p, |m| Point3::from(m.mean));
+                    node.map_from_sensor * point
+                })
                 .collect();
             updater.insert_scan(&mut tree, &origin, &hits, &[], max_range);
             done(k + 1);
@@ -149,31 +171,27 @@ pub fn map_recorded(
             propagator(options.method, &chain, SigmaSet::Paper).expect("an OPDF method");
         let origin = propagator.origin();
         let map_from_sensor = chain.nominal().rotation.to_rotation_matrix().into_inner();
-        for (sensor_from_grid, members) in grid_frames(&node.points) {
-            let angles: Vec<(f64, f64)> = members
-                .iter()
-                .map(|&i| {
-                    let (_, az, el) =
-                        spherical(&(sensor_from_grid.transpose() * node.points[i].coords));
-                    (az, el)
-                })
-                .collect();
-            let Some((azimuth, elevation)) = bin_axes(&angles, options.angular_step)? else {
-                continue;
-            };
+        let grids = node_grids(node, options.angular_step)?;
+        let points = node_points(
+            node,
+            &grids,
+            &profile.range,
+            settings.beam_pooling,
+            max_range,
+        )?;
+        for grid in &grids {
             let ends = beam_ends(
                 &node.points,
-                &members,
-                &profile.range,
+                &grid.members,
+                &points,
                 &map_from_sensor,
-                max_range,
                 propagator.as_ref(),
             );
             let grid = LocalGrid::new(
                 origin.mean,
-                map_from_sensor * sensor_from_grid,
-                azimuth,
-                elevation,
+                map_from_sensor * grid.sensor_from_grid,
+                grid.azimuth,
+                grid.elevation,
                 max_range,
                 &ends,
                 &origin.covariance,
@@ -190,39 +208,129 @@ pub fn map_recorded(
 }
 
 /// The propagated ends of the points `members` of a cloud (none at the
-/// origin, [`grid_frames`]): a point within `max_range` is a hit with the
-/// range model's covariance, a farther one a no-return beam along its
-/// direction.
+/// origin, [`grid_frames`]): a point with a measured point (`points`,
+/// [`node_points`]) is a hit, else a no-return beam along its direction.
 fn beam_ends(
-    points: &[Point3],
+    cloud: &[Point3],
     members: &[usize],
-    range: &RangeModel,
+    points: &[Option<UncertainPoint>],
     map_from_sensor: &Matrix3,
-    max_range: f64,
     propagator: &dyn crate::uncertainty::Propagator,
 ) -> Vec<BeamEnd> {
     members
         .par_iter()
-        .map(|&i| {
-            let p = points[i].coords;
-            let r = p.norm();
-            let d = p / r;
-            if r > max_range {
-                BeamEnd::Miss {
-                    direction: map_from_sensor * d,
-                }
-            } else {
-                let g = propagator.propagate(&UncertainPoint {
-                    mean: p,
-                    covariance: range.point_covariance(&d, r),
-                });
+        .map(|&i| match &points[i] {
+            Some(point) => {
+                let g = propagator.propagate(point);
                 BeamEnd::Hit {
                     point: g.mean,
                     covariance: g.covariance,
                 }
             }
+            None => BeamEnd::Miss {
+                direction: map_from_sensor * cloud[i].coords.normalize(),
+            },
         })
         .collect()
+}
+
+/// One angular grid of a node's cloud (docs/math.md §5.6): its frame, its
+/// points with their (azimuth, elevation) in it, and its bins.
+struct NodeGrid {
+    sensor_from_grid: Matrix3,
+    members: Vec<usize>,
+    angles: Vec<(f64, f64)>,
+    azimuth: Axis,
+    elevation: Axis,
+}
+
+/// The angular grids of `node`'s cloud with their bins (`step`: the bin
+/// width, else each grid's median spacing).
+fn node_grids(node: &ScanNode, step: Option<f64>) -> Result<Vec<NodeGrid>> {
+    let mut grids = Vec::new();
+    for (sensor_from_grid, members) in grid_frames(&node.points) {
+        let angles: Vec<(f64, f64)> = members
+            .iter()
+            .map(|&i| {
+                let (_, az, el) =
+                    spherical(&(sensor_from_grid.transpose() * node.points[i].coords));
+                (az, el)
+            })
+            .collect();
+        let Some((azimuth, elevation)) = bin_axes(&angles, step)? else {
+            continue;
+        };
+        grids.push(NodeGrid {
+            sensor_from_grid,
+            members,
+            angles,
+            azimuth,
+            elevation,
+        });
+    }
+    Ok(grids)
+}
+
+/// The measured point (sensor frame) of each point of `node` within
+/// `max_range` (`None`: a beam that returned nothing, or the origin): the
+/// point with the range model's covariance, or with `pooling` its range
+/// pooled with its neighbours in its grid's raster of bins (docs/math.md
+/// §5.5; a regular scanner's raster, one point per bin, §5.6).
+fn node_points(
+    node: &ScanNode,
+    grids: &[NodeGrid],
+    range: &RangeModel,
+    pooling: Pooling,
+    max_range: f64,
+) -> Result<Vec<Option<UncertainPoint>>> {
+    let mut points: Vec<Option<UncertainPoint>> = node
+        .points
+        .par_iter()
+        .map(|p| {
+            let r = p.coords.norm();
+            (r > 0.0 && r <= max_range).then(|| UncertainPoint {
+                mean: p.coords,
+                covariance: range.point_covariance(&(p.coords / r), r),
+            })
+        })
+        .collect();
+    if pooling == Pooling::Off {
+        return Ok(points);
+    }
+    for grid in grids {
+        let (columns, rows) = (grid.azimuth.count, grid.elevation.count);
+        let bin = |angle: f64, axis: &Axis| {
+            (((angle - axis.start) / axis.step).floor().max(0.0) as usize).min(axis.count - 1)
+        };
+        let mut ranges = vec![None; columns * rows];
+        let mut directions = vec![Vector3::zeros(); columns * rows];
+        let mut taken = vec![false; columns * rows];
+        let mut slots = Vec::with_capacity(grid.members.len());
+        for (&i, &(azimuth, elevation)) in grid.members.iter().zip(&grid.angles) {
+            let slot = bin(elevation, &grid.elevation) * columns + bin(azimuth, &grid.azimuth);
+            if std::mem::replace(&mut taken[slot], true) {
+                return Err(Error::Usage(format!(
+                    "beam pooling needs a regular raster, one point per angular bin: scan {} has \
+                     two points in one bin of {:.4} deg; give the scanner's step with \
+                     --angular-step, or map without --beam-pooling",
+                    node.id,
+                    grid.azimuth.step.to_degrees()
+                )));
+            }
+            let p = node.points[i].coords;
+            let r = p.norm();
+            directions[slot] = p / r;
+            ranges[slot] = points[i].as_ref().map(|_| r);
+            slots.push(slot);
+        }
+        let pooled = pooled_points(pooling, columns, &directions, &ranges, range);
+        for (&i, &slot) in grid.members.iter().zip(&slots) {
+            if points[i].is_some() {
+                points[i] = pooled[slot];
+            }
+        }
+    }
+    Ok(points)
 }
 
 /// The angular grids of a cloud: `(sensor_from_grid, the points in it)`.

@@ -2,6 +2,7 @@ use super::*;
 use crate::experiment::export::scan_nodes;
 use crate::experiment::model::{build_map, MapperView};
 use crate::experiment::{simulate, Experiment};
+use crate::mapping::pooling::Pooling;
 use std::path::Path;
 
 fn quickstart() -> Experiment {
@@ -125,27 +126,35 @@ fn recorded_scans_map_as_the_simulated_scans_do() {
     profile.robot_from_camera = Matrix6::zeros();
     profile.arm = ArmError::Pose(Matrix6::zeros());
     let resolution = 0.02;
-    for method in [Method::RayUpdate, Method::Unscented] {
-        let ours = build_map(&view, &run.scans, method, resolution, &offset).unwrap();
-        let options = RecordedOptions {
-            method,
-            resolution,
-            max_range: Some(experiment.scanner.max_range),
-            angular_step: None,
-        };
-        let theirs = map_recorded(&nodes, &profile, &experiment.map, &options, |_| {}).unwrap();
-        let (mut cells, mut differ) = (0usize, 0usize);
-        ours.visit_leaves(|leaf| {
-            cells += 1;
-            let other = theirs.query(&leaf.key, leaf.depth);
-            if other.is_none_or(|v| (v - leaf.value).abs() > 1e-3) {
-                differ += 1;
-            }
-        });
-        eprintln!("{method:?}: {differ} of {cells} leaves differ");
-        assert!(cells > 1000);
-        assert_eq!(differ, 0, "{method:?}");
-        assert_eq!(ours.stats().leaves, theirs.stats().leaves, "{method:?}");
+    // With beam pooling too: the bins are the scanner's raster, so each
+    // beam is pooled with the same neighbours.
+    let mut experiment = experiment;
+    for pooling in [Pooling::Off, Pooling::Faces, Pooling::Windows] {
+        experiment.map.beam_pooling = pooling;
+        let view = MapperView::of(&experiment);
+        for method in [Method::RayUpdate, Method::Unscented] {
+            let ours = build_map(&view, &run.scans, method, resolution, &offset).unwrap();
+            let options = RecordedOptions {
+                method,
+                resolution,
+                max_range: Some(experiment.scanner.max_range),
+                angular_step: None,
+            };
+            let theirs = map_recorded(&nodes, &profile, &experiment.map, &options, |_| {}).unwrap();
+            let (mut cells, mut differ) = (0usize, 0usize);
+            ours.visit_leaves(|leaf| {
+                cells += 1;
+                let other = theirs.query(&leaf.key, leaf.depth);
+                if other.is_none_or(|v| (v - leaf.value).abs() > 1e-3) {
+                    differ += 1;
+                }
+            });
+            eprintln!("{method:?} ({pooling:?}): {differ} of {cells} leaves differ");
+            assert!(cells > 1000);
+            assert_eq!(differ, 0, "{method:?} ({pooling:?})");
+            let leaves = (ours.stats().leaves, theirs.stats().leaves);
+            assert_eq!(leaves.0, leaves.1, "{method:?} ({pooling:?})");
+        }
     }
     // Progress: once per node, in order.
     let seen = std::sync::Mutex::new(Vec::new());
@@ -176,6 +185,33 @@ fn a_profile_with_joint_errors_is_refused() {
         .to_string();
     assert!(
         err.contains("joint_sigma") && err.contains("collaborative.toml"),
+        "{err}"
+    );
+}
+
+/// Pooling needs the scanner's raster: bins twice the raster step hold
+/// two points each, and the map is refused with what to do.
+#[test]
+fn pooling_a_cloud_needs_one_point_per_bin() {
+    let points = raster(0.5, 30, 20, |_| true);
+    let node = ScanNode {
+        id: 7,
+        map_from_sensor: crate::geometry::Isometry3::identity(),
+        points,
+    };
+    let profile = quickstart().profile;
+    let range = &profile.range;
+    let points_with = |step: Option<f64>| {
+        let grids = node_grids(&node, step.map(f64::to_radians)).unwrap();
+        node_points(&node, &grids, range, Pooling::Faces, f64::INFINITY)
+    };
+    let pooled = points_with(None).unwrap();
+    assert!(pooled.iter().all(Option::is_some));
+    let err = points_with(Some(1.0)).unwrap_err().to_string();
+    assert!(
+        err.contains("scan 7")
+            && err.contains("one point per angular bin")
+            && err.contains("--angular-step"),
         "{err}"
     );
 }
