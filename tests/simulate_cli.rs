@@ -220,7 +220,7 @@ fn bad_inputs_exit_2_naming_file_and_problem() {
         "experiments/quickstart.toml",
         |t| t.replacen("seed = 1", "seed = 1\nbeam_pooling = \"face\"", 1),
         "quickstart.toml",
-        "beam_pooling = \"face\": use true",
+        "beam_pooling = \"face\": use \"faces\"",
     );
 }
 

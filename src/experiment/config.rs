@@ -51,7 +51,8 @@ struct ExperimentFile {
     sweeps: Vec<SweepAxis>,
 }
 
-/// `beam_pooling` as written: `true` / `false`, or a mode's name.
+/// `beam_pooling` as written: `true` / `false`, or a mode's name (a string,
+/// so that a sweep can take the modes: `"off"`, `"faces"`, `"windows"`).
 #[derive(Deserialize)]
 #[serde(untagged)]
 enum PoolingSpec {
@@ -71,10 +72,15 @@ impl PoolingSpec {
         match self {
             PoolingSpec::Switch(false) => Ok(Pooling::Off),
             PoolingSpec::Switch(true) => Ok(Pooling::Windows),
-            PoolingSpec::Named(name) if name == "faces" => Ok(Pooling::Faces),
-            PoolingSpec::Named(name) => Err(format!(
-                "beam_pooling = \"{name}\": use true (windows and faces), \"faces\" (large planar faces only) or false"
-            )),
+            PoolingSpec::Named(name) => match name.as_str() {
+                "off" => Ok(Pooling::Off),
+                "faces" => Ok(Pooling::Faces),
+                "windows" => Ok(Pooling::Windows),
+                _ => Err(format!(
+                    "beam_pooling = \"{name}\": use \"faces\" (large planar faces only), \"windows\" \
+                     or true (every beam's window and the faces), or \"off\" or false"
+                )),
+            },
         }
     }
 }
@@ -656,11 +662,34 @@ mod tests {
         assert_eq!(read("beam_pooling = false"), Ok(Pooling::Off));
         assert_eq!(read("beam_pooling = true"), Ok(Pooling::Windows));
         assert_eq!(read("beam_pooling = \"faces\""), Ok(Pooling::Faces));
+        assert_eq!(read("beam_pooling = \"windows\""), Ok(Pooling::Windows));
+        assert_eq!(read("beam_pooling = \"off\""), Ok(Pooling::Off));
         let error = read("beam_pooling = \"face\"").unwrap_err();
         assert!(
-            error.starts_with("beam_pooling = \"face\": use true"),
+            error.starts_with("beam_pooling = \"face\": use \"faces\""),
             "{error}"
         );
+    }
+
+    #[test]
+    fn beam_pooling_is_a_string_sweep_axis() {
+        let root = env!("CARGO_MANIFEST_DIR");
+        let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
+            .unwrap()
+            .replace("\"../", &format!("\"{root}/"))
+            .replace("\"profiles/", &format!("\"{root}/experiments/profiles/"))
+            .replacen("seed = 1", "seed = 1\nbeam_pooling = \"off\"", 1)
+            + "\n[[sweep]]\nfield = \"experiment.beam_pooling\"\nvalues = [\"off\", \"faces\", \"windows\"]\n";
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("pooling.toml");
+        std::fs::write(&path, text).unwrap();
+        let experiment = Experiment::load(&path).unwrap();
+        let modes: Vec<Pooling> = experiment
+            .cells()
+            .iter()
+            .map(|cell| Experiment::load_cell(&path, cell).unwrap().map.beam_pooling)
+            .collect();
+        assert_eq!(modes, [Pooling::Off, Pooling::Faces, Pooling::Windows]);
     }
 
     #[test]
