@@ -119,7 +119,8 @@ fn ray_update_map(resolution: &str, out: &std::path::Path, extra: &[&str]) {
 
 /// sigmap's ray update against OctoMap's `insertPointCloud` on the same rays:
 /// the same tree, node for node (benches/octomap/insert.cpp, built here with
-/// g++ against Debian's liboctomap-dev).
+/// g++ against Debian's liboctomap-dev); with beam pooling too, the rays
+/// ending at the pooled points.
 #[test]
 #[ignore = "needs OctoMap's tools (apt-get install octomap-tools); .ci/run runs it"]
 fn ray_update_builds_the_same_tree_as_octomap() {
@@ -131,15 +132,32 @@ fn ray_update_builds_the_same_tree_as_octomap() {
         .args(["-O2", "-std=c++17", source, "-o"])
         .arg(&exe)
         .args(["-loctomap", "-loctomath"]));
-    let rays = dir.path().join("rays.bin");
-    let ours = dir.path().join("ours.ot");
-    ray_update_map("0.02", &ours, &["--export-rays", rays.to_str().unwrap()]);
-    let theirs = dir.path().join("octomap.ot");
-    run(Command::new(&exe).arg(&rays).arg("0.02").arg(&theirs));
-    let ours_tree = read_octree(&ours, Clamp::OCTOMAP).unwrap();
-    let their_tree = read_octree(&theirs, Clamp::OCTOMAP).unwrap();
-    assert_eq!(ours_tree.stats().nodes, their_tree.stats().nodes);
-    assert_eq!(ours_tree, their_tree, "every leaf and log-odds equal");
+    let mut trees = Vec::new();
+    for pooling in ["off", "faces"] {
+        let rays = dir.path().join(format!("rays_{pooling}.bin"));
+        let ours = dir.path().join(format!("ours_{pooling}.ot"));
+        let export = ["--export-rays", rays.to_str().unwrap()];
+        ray_update_map(
+            "0.02",
+            &ours,
+            &[&export[..], &["--beam-pooling", pooling]].concat(),
+        );
+        let theirs = dir.path().join(format!("octomap_{pooling}.ot"));
+        run(Command::new(&exe).arg(&rays).arg("0.02").arg(&theirs));
+        let ours_tree = read_octree(&ours, Clamp::OCTOMAP).unwrap();
+        let their_tree = read_octree(&theirs, Clamp::OCTOMAP).unwrap();
+        assert_eq!(
+            ours_tree.stats().nodes,
+            their_tree.stats().nodes,
+            "{pooling}"
+        );
+        assert_eq!(
+            ours_tree, their_tree,
+            "{pooling}: every leaf and log-odds equal"
+        );
+        trees.push(ours_tree);
+    }
+    assert!(trees[0] != trees[1], "pooling moved the rays' ends");
 }
 
 /// Finest cells whose class (occupied, free, unknown) differs between two

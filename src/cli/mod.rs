@@ -180,7 +180,8 @@ pub(crate) struct MapArgs {
     /// required with --scans].
     #[arg(long)]
     out: Option<PathBuf>,
-    /// Also write the rays (origins and end points) for OctoMap's benchmark.
+    /// Also write the rays (origins and end points) for OctoMap's benchmark:
+    /// the rays the ray update inserts (with beam pooling, the pooled points).
     #[arg(long, conflicts_with = "scans")]
     export_rays: Option<PathBuf>,
     /// Map scans recorded elsewhere: an OctoMap ScanGraph (.graph, e.g. from

@@ -2,10 +2,11 @@
 //! with the sensor origin, and the nominal chain in `sigmap propagate` format;
 //! the truth in a separate folder for scoring.
 
-use super::model::{ray_inputs, MapperView};
+use super::model::{measured_points, ray_inputs_into, MapperView};
 use super::{Experiment, SimulatedRun};
 use crate::error::{Error, Result};
 use crate::geometry::{Isometry3, Matrix6, Pose};
+use crate::mapping::pooling::Pooling;
 use crate::sim::scan::{BeamStatus, Scan, ScanTruth};
 use crate::uncertainty::UncertainPose;
 use std::fmt::Write as _;
@@ -348,7 +349,8 @@ pub fn default_scan_dir(experiment: &Experiment) -> PathBuf {
 
 /// The rays OctoMap's `insertPointCloud` gets: per scan, the origin and the
 /// end points (no-return beams as points at twice the maximum range, which
-/// OctoMap truncates to free space). Little-endian:
+/// OctoMap truncates to free space); with `beam_pooling`, the pooled points,
+/// as sigmap's ray update inserts them. Little-endian:
 /// `"SIGMAPRAYS1\n"`, `f32` max range, `u32` scans; per scan `f32` origin x y z,
 /// `u32` n, n × `f32` x y z (benches/octomap/insert.cpp reads it).
 pub fn write_rays(path: &Path, view: &MapperView, scans: &[Scan]) -> Result<()> {
@@ -356,8 +358,11 @@ pub fn write_rays(path: &Path, view: &MapperView, scans: &[Scan]) -> Result<()> 
     let max_range = view.scanner.max_range;
     out.extend_from_slice(&(max_range as f32).to_le_bytes());
     out.extend_from_slice(&(scans.len() as u32).to_le_bytes());
+    let (mut hits, mut misses) = (Vec::new(), Vec::new());
     for scan in scans {
-        let (origin, hits, misses) = ray_inputs(view, scan);
+        let pooled =
+            (view.settings.beam_pooling != Pooling::Off).then(|| measured_points(view, scan));
+        let origin = ray_inputs_into(view, scan, pooled.as_deref(), &mut hits, &mut misses);
         for v in origin.iter() {
             out.extend_from_slice(&(*v as f32).to_le_bytes());
         }
