@@ -66,6 +66,61 @@ fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
+/// Each error bar as a two-point line.
+fn bars_as_lines(bars: &[Vec<(f64, f64, f64)>]) -> Vec<Vec<(f64, f64)>> {
+    bars.iter()
+        .flatten()
+        .map(|&(x, lo, hi)| vec![(x, lo), (x, hi)])
+        .collect()
+}
+
+/// The corner of the plot whose legend box (`series` lines of up to
+/// `longest` characters, sized as plotters draws it on a 560 × 420 panel)
+/// covers the fewest samples of the drawn `lines` (each segment sampled at
+/// ten points); ties go to the upper left, then upper right, lower left,
+/// lower right.
+fn legend_corner<'a>(
+    lines: impl Iterator<Item = &'a [(f64, f64)]>,
+    ((x0, x1), (y0, y1)): ((f64, f64), (f64, f64)),
+    series: usize,
+    longest: usize,
+) -> SeriesLabelPosition {
+    let width = ((longest as f64 * 6.5 + 45.0) / 470.0).min(1.0) * (x1 - x0);
+    let height = ((series as f64 * 15.0 + 12.0) / 330.0).min(1.0) * (y1 - y0);
+    let boxes = [
+        (SeriesLabelPosition::UpperLeft, x0, y1 - height),
+        (SeriesLabelPosition::UpperRight, x1 - width, y1 - height),
+        (SeriesLabelPosition::LowerLeft, x0, y0),
+        (SeriesLabelPosition::LowerRight, x1 - width, y0),
+    ];
+    let mut covered = [0usize; 4];
+    for line in lines {
+        let samples = line.windows(2).flat_map(|w| {
+            (0..10).map(move |i| {
+                let t = i as f64 / 10.0;
+                (
+                    w[0].0 + t * (w[1].0 - w[0].0),
+                    w[0].1 + t * (w[1].1 - w[0].1),
+                )
+            })
+        });
+        for (x, y) in samples.chain(line.last().copied()) {
+            for (count, &(_, bx, by)) in covered.iter_mut().zip(&boxes) {
+                if (bx..=bx + width).contains(&x) && (by..=by + height).contains(&y) {
+                    *count += 1;
+                }
+            }
+        }
+    }
+    let best = (0..4).min_by_key(|&i| (covered[i], i)).unwrap_or(0);
+    match best {
+        1 => SeriesLabelPosition::UpperRight,
+        2 => SeriesLabelPosition::LowerLeft,
+        3 => SeriesLabelPosition::LowerRight,
+        _ => SeriesLabelPosition::UpperLeft,
+    }
+}
+
 fn label(v: f64, log: bool) -> String {
     if log {
         format!("{:.1e}", 10f64.powf(v))
@@ -147,7 +202,7 @@ fn draw_panels(svg: &mut String, path: &Path, columns: usize, panels: &[Panel]) 
             .y_label_formatter(&|v| label(*v, log_y))
             .draw()
             .map_err(|e| err(&e))?;
-        for (k, (series, points)) in panel.series.iter().zip(lines).enumerate() {
+        for (k, (series, points)) in panel.series.iter().zip(lines.iter().cloned()).enumerate() {
             let colour = COLOURS[k % COLOURS.len()];
             if points.is_empty() && bars[k].is_empty() {
                 // Nothing to draw (nor to name); its colour stays its own.
@@ -176,13 +231,48 @@ fn draw_panels(svg: &mut String, path: &Path, columns: usize, panels: &[Panel]) 
                     .map_err(|e| err(&e))?;
             }
         }
+        let bar_lines = bars_as_lines(&bars);
+        let drawn = lines.iter().chain(&bar_lines).map(|l| &l[..]);
+        let longest = panel
+            .series
+            .iter()
+            .map(|s| s.name.chars().count())
+            .max()
+            .unwrap_or(0);
+        let corner = legend_corner(drawn, (xs, ys), panel.series.len(), longest);
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
+            .position(corner)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .draw()
             .map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_legend_goes_where_the_lines_are_not() {
+        let frame = ((0.0, 2.0), (0.0, 1.0));
+        let corner = |line: &[(f64, f64)]| legend_corner([line].into_iter(), frame, 4, 30);
+        // Falling from the upper left: the upper right is empty.
+        assert_eq!(
+            corner(&[(0.0, 1.0), (2.0, 0.0)]),
+            SeriesLabelPosition::UpperRight
+        );
+        // Rising from the lower left: the upper left is empty.
+        assert_eq!(
+            corner(&[(0.0, 0.0), (2.0, 1.0)]),
+            SeriesLabelPosition::UpperLeft
+        );
+        // Along the top: a lower corner.
+        assert_eq!(
+            corner(&[(0.0, 0.95), (2.0, 0.95)]),
+            SeriesLabelPosition::LowerLeft
+        );
+    }
 }
