@@ -219,8 +219,9 @@ pub struct Experiment {
     pub grid_offset: bool,
     /// How maps are built: OctoMap's hit, miss and clamp (`[map]`), the
     /// cell model's bounds (`[map]`) and risk level ε (`risk`, off when
-    /// absent; docs/math.md §5.4), and beam pooling (`beam_pooling = true`
-    /// or `"faces"`; §5.5). Defaults: OctoMap's and the paper's values.
+    /// absent; docs/math.md §5.4), and beam pooling (`beam_pooling =
+    /// "faces"`, `"windows"` or `true`; §5.5). Defaults: OctoMap's and the
+    /// paper's values, pooling off.
     pub map: MapSettings,
     /// The sigma-point set of the `unscented` and `correlated` methods: the
     /// paper's, or the scaled set of an `[unscented]` table (docs/math.md

@@ -18,7 +18,7 @@ pub struct MapSettings {
     /// What one beam says about one cell (OPDF methods).
     pub model: CellModel,
     /// Which hits' ranges are pooled with their neighbours on the surface
-    /// they share (docs/math.md §5.5; OPDF methods).
+    /// they share (docs/math.md §5.5; every method maps the pooled points).
     pub beam_pooling: Pooling,
 }
 
