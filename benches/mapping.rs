@@ -58,15 +58,8 @@ fn bench(c: &mut Criterion) {
                 .expect("the quickstart maps")
         })
     };
-    let seconds_on = |pool: &rayon::ThreadPool, method| {
-        let start = Instant::now();
-        let mut reps = 0;
-        while reps < 3 || start.elapsed() < Duration::from_secs(1) {
-            black_box(build(pool, method));
-            reps += 1;
-        }
-        start.elapsed().as_secs_f64() / reps as f64
-    };
+    let seconds_on =
+        |pool: &rayon::ThreadPool, method| mean_seconds(|| black_box(build(pool, method)));
     let seconds = |method| seconds_on(&pool, method);
     let baseline = seconds(Method::RayUpdate);
     println!("\ninsertion of {beams} beams at {RESOLUTION} m, one core (ratio: beams/s against the ray update):");
@@ -126,15 +119,11 @@ fn bench(c: &mut Criterion) {
         let view = MapperView::of(&experiment);
         let pool_scans = |pool: &rayon::ThreadPool| {
             pool.install(|| {
-                let start = Instant::now();
-                let mut reps = 0;
-                while reps < 3 || start.elapsed() < Duration::from_secs(1) {
+                mean_seconds(|| {
                     for scan in &run.scans {
                         black_box(measured_points(&view, scan));
                     }
-                    reps += 1;
-                }
-                start.elapsed().as_secs_f64() / reps as f64
+                })
             })
         };
         let (one_core, two_cores) = (pool_scans(&pool), pool_scans(&two));
@@ -147,6 +136,17 @@ fn bench(c: &mut Criterion) {
             one_core / two_cores
         );
     }
+}
+
+/// The mean time of `work` over at least three runs and one second.
+fn mean_seconds<T>(mut work: impl FnMut() -> T) -> f64 {
+    let start = Instant::now();
+    let mut reps = 0;
+    while reps < 3 || start.elapsed() < Duration::from_secs(1) {
+        black_box(work());
+        reps += 1;
+    }
+    start.elapsed().as_secs_f64() / reps as f64
 }
 
 /// What two cores can give at best on this machine, measured beside the

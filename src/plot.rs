@@ -202,7 +202,7 @@ fn draw_panels(svg: &mut String, path: &Path, columns: usize, panels: &[Panel]) 
             .y_label_formatter(&|v| label(*v, log_y))
             .draw()
             .map_err(|e| err(&e))?;
-        for (k, (series, points)) in panel.series.iter().zip(lines.iter().cloned()).enumerate() {
+        for (k, (series, points)) in panel.series.iter().zip(&lines).enumerate() {
             let colour = COLOURS[k % COLOURS.len()];
             if points.is_empty() && bars[k].is_empty() {
                 // Nothing to draw (nor to name); its colour stays its own.
@@ -215,7 +215,10 @@ fn draw_panels(svg: &mut String, path: &Path, columns: usize, panels: &[Panel]) 
                 .map_err(|e| err(&e))?;
             let dots = points.len() <= 60;
             chart
-                .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
+                .draw_series(LineSeries::new(
+                    points.iter().copied(),
+                    colour.stroke_width(2),
+                ))
                 .map_err(|e| err(&e))?
                 .label(series.name.clone())
                 .legend(move |(x, y)| {
@@ -223,11 +226,7 @@ fn draw_panels(svg: &mut String, path: &Path, columns: usize, panels: &[Panel]) 
                 });
             if dots {
                 chart
-                    .draw_series(
-                        points
-                            .into_iter()
-                            .map(|p| Circle::new(p, 3, colour.filled())),
-                    )
+                    .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
                     .map_err(|e| err(&e))?;
             }
         }

@@ -354,13 +354,8 @@ fn parse_shard(text: &str) -> std::result::Result<(usize, usize), String> {
 }
 
 fn parse_pooling(text: &str) -> std::result::Result<crate::mapping::pooling::Pooling, String> {
-    use crate::mapping::pooling::Pooling;
-    match text {
-        "off" => Ok(Pooling::Off),
-        "faces" => Ok(Pooling::Faces),
-        "windows" => Ok(Pooling::Windows),
-        _ => Err("use faces, windows or off".into()),
-    }
+    crate::mapping::pooling::Pooling::from_name(text)
+        .ok_or_else(|| "use faces, windows or off".into())
 }
 
 fn parse_point(text: &str) -> std::result::Result<[f64; 3], String> {

@@ -72,15 +72,12 @@ impl PoolingSpec {
         match self {
             PoolingSpec::Switch(false) => Ok(Pooling::Off),
             PoolingSpec::Switch(true) => Ok(Pooling::Windows),
-            PoolingSpec::Named(name) => match name.as_str() {
-                "off" => Ok(Pooling::Off),
-                "faces" => Ok(Pooling::Faces),
-                "windows" => Ok(Pooling::Windows),
-                _ => Err(format!(
+            PoolingSpec::Named(name) => Pooling::from_name(name).ok_or_else(|| {
+                format!(
                     "beam_pooling = \"{name}\": use \"faces\" (large planar faces only), \"windows\" \
                      or true (every beam's window and the faces), or \"off\" or false"
-                )),
-            },
+                )
+            }),
         }
     }
 }

@@ -321,10 +321,14 @@ pub fn build_map_measured(
         let pooling = view.settings.beam_pooling != Pooling::Off;
         let mut find = |updater: &mut RayUpdater, i: usize| {
             let scan = &scans[i];
-            // With beam pooling the rays end at the pooled points.
-            let pooled = (pooling && measured.is_none()).then(|| measured_points(view, scan));
-            let points = measured.map(|m| &m[i][..]).or(pooled.as_deref());
-            let points = points.filter(|_| pooling);
+            // With beam pooling the rays end at the pooled points (the
+            // run's, when it computed them for every method).
+            let shared = measured.filter(|_| pooling).map(|m| &m[i][..]);
+            let own = shared
+                .is_none()
+                .then(|| pooled_ray_ends(view, scan))
+                .flatten();
+            let points = shared.or(own.as_deref());
             let origin = ray_inputs_into(view, scan, points, &mut hits, &mut misses) + offset;
             hits.iter_mut().for_each(|h| *h += offset);
             updater.find_cells(&geometry, &origin, &hits, &misses, max_range);
@@ -504,6 +508,13 @@ pub fn ray_inputs(view: &MapperView, scan: &Scan) -> (Point3, Vec<Point3>, Vec<V
     let (mut hits, mut misses) = (Vec::new(), Vec::new());
     let origin = ray_inputs_into(view, scan, None, &mut hits, &mut misses);
     (origin, hits, misses)
+}
+
+/// Where a scan's rays end for the ray update: with beam pooling, at its
+/// pooled [`measured_points`]; `None` without pooling (the raw hits, as
+/// OctoMap's).
+pub fn pooled_ray_ends(view: &MapperView, scan: &Scan) -> Option<Vec<Option<UncertainPoint>>> {
+    (view.settings.beam_pooling != Pooling::Off).then(|| measured_points(view, scan))
 }
 
 /// [`ray_inputs`] into buffers of the caller's (reused from scan to scan:

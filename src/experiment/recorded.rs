@@ -304,11 +304,11 @@ fn node_points(
         };
         let mut ranges = vec![None; columns * rows];
         let mut directions = vec![Vector3::zeros(); columns * rows];
-        let mut taken = vec![false; columns * rows];
         let mut slots = Vec::with_capacity(grid.members.len());
         for (&i, &(azimuth, elevation)) in grid.members.iter().zip(&grid.angles) {
             let slot = bin(elevation, &grid.elevation) * columns + bin(azimuth, &grid.azimuth);
-            if std::mem::replace(&mut taken[slot], true) {
+            // A slot's direction is set once it holds a point.
+            if directions[slot] != Vector3::zeros() {
                 return Err(Error::Usage(format!(
                     "beam pooling needs a regular raster, one point per angular bin: scan {} has \
                      two points in one bin of {:.4} deg; give the scanner's step with \

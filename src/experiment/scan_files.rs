@@ -2,11 +2,10 @@
 //! with the sensor origin, and the nominal chain in `sigmap propagate` format;
 //! the truth in a separate folder for scoring.
 
-use super::model::{measured_points, ray_inputs_into, MapperView};
+use super::model::{pooled_ray_ends, ray_inputs_into, MapperView};
 use super::{Experiment, SimulatedRun};
 use crate::error::{Error, Result};
 use crate::geometry::{Isometry3, Matrix6, Pose};
-use crate::mapping::pooling::Pooling;
 use crate::sim::scan::{BeamStatus, Scan, ScanTruth};
 use crate::uncertainty::UncertainPose;
 use std::fmt::Write as _;
@@ -360,8 +359,7 @@ pub fn write_rays(path: &Path, view: &MapperView, scans: &[Scan]) -> Result<()> 
     out.extend_from_slice(&(scans.len() as u32).to_le_bytes());
     let (mut hits, mut misses) = (Vec::new(), Vec::new());
     for scan in scans {
-        let pooled =
-            (view.settings.beam_pooling != Pooling::Off).then(|| measured_points(view, scan));
+        let pooled = pooled_ray_ends(view, scan);
         let origin = ray_inputs_into(view, scan, pooled.as_deref(), &mut hits, &mut misses);
         for v in origin.iter() {
             out.extend_from_slice(&(*v as f32).to_le_bytes());

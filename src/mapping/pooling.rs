@@ -41,6 +41,19 @@ pub enum Pooling {
     Windows,
 }
 
+impl Pooling {
+    /// The mode named `off`, `faces` or `windows` (experiment files and
+    /// `--beam-pooling`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "off" => Some(Self::Off),
+            "faces" => Some(Self::Faces),
+            "windows" => Some(Self::Windows),
+            _ => None,
+        }
+    }
+}
+
 /// Pools the hits of one viewpoint, on each beam's 3×3 window, then on the
 /// large planar faces grown over those windows (with [`Pooling::Faces`],
 /// only the faces' beams keep a pooled range). `ranges[k]` is beam k's

@@ -92,6 +92,8 @@ pub(super) fn pool_faces(
         let face = grow(seed, plane, (columns, rows), &window_near, &mut claim, &fit);
         faces.push(face);
     }
+    // The strays taken by the face at hand (cleared after each face).
+    let mut taken = vec![false; count];
     for (id, face) in faces.iter().enumerate() {
         if face.len() < MIN_FACE_HITS {
             continue;
@@ -133,7 +135,6 @@ pub(super) fn pool_faces(
         // hundred at the 99% test) and that lie on its plane: where a window
         // failed for a real second surface, a neighbour shows it and the rim
         // rule below keeps the hit out.
-        let mut taken = vec![false; count];
         let mut stray = Vec::new();
         for &k in face {
             for j in beside(k, (columns, rows)).into_iter().flatten() {
@@ -164,6 +165,9 @@ pub(super) fn pool_faces(
                 out[k] = Some(pooled);
                 raised[k] = true;
             }
+        }
+        for &j in &stray {
+            taken[j] = false;
         }
     }
     raised
