@@ -14,7 +14,7 @@ use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::{BeamEnd, GridBuffers};
 use crate::mapping::surface_cells::SurfaceCells;
-use crate::mapping::viewpoint::{local_grid_of, Raster};
+use crate::mapping::viewpoint::{local_grid_of, nominal_bins, Raster};
 use crate::mapping::{Clamp, MapSettings, Octree};
 use crate::sim::scan::{BeamStatus, Measurement, Scan};
 use crate::sim::sensor::RangeModel;
@@ -358,6 +358,8 @@ pub fn build_map_measured(
     };
     let options = view.settings.merge_options();
     let geometry = Octree::new(resolution);
+    // The scanner's nominal directions' bins, once for every scan.
+    let nominal = nominal_bins(raster, &view.scanner.directions);
     // Scan i's local grid (its beams propagated and binned) and the cells
     // its surface bands reach.
     let grid_of = |i: usize, buffers: GridBuffers| {
@@ -397,7 +399,7 @@ pub fn build_map_measured(
             buffers,
             (&(origin.mean + offset), &origin.covariance),
             &scene_from_camera,
-            raster,
+            (raster, Some(&nominal)),
             (scan.measurements.len(), end),
             max_range,
         );

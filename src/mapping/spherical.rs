@@ -271,14 +271,23 @@ impl LocalGrid {
             elevation,
             max_range,
         };
-        Self::from_ends_in(GridBuffers::default(), layout, ends, origin_covariance)
+        Self::from_ends_in(
+            GridBuffers::default(),
+            layout,
+            None,
+            ends,
+            origin_covariance,
+        )
     }
 
     /// [`LocalGrid::from_ends`] in the memory of `buffers` (from
-    /// [`LocalGrid::into_buffers`]); the grid is the same.
+    /// [`LocalGrid::into_buffers`]); the grid is the same. `nominal`, the
+    /// bins of the beams' nominal directions on these axes, answers most
+    /// beams' bin lookups (the same bins; ignored if made for other axes).
     pub fn from_ends_in(
         buffers: GridBuffers,
         layout: GridLayout,
+        nominal: Option<&NominalBins<'_>>,
         (count, end): (usize, impl Fn(usize) -> Option<BeamEnd> + Sync),
         origin_covariance: &Matrix3,
     ) -> Self {
@@ -293,6 +302,7 @@ impl LocalGrid {
         let bins = azimuth.count * elevation.count;
         let slack = lookup::slack(&azimuth, &elevation);
         let tangents = [TangentBins::new(&azimuth), TangentBins::new(&elevation)];
+        let nominal = nominal.filter(|n| n.fits(&azimuth, &elevation));
         // Each beam's bin and the beam, in input order; `bins` (one past the
         // last bin) marks a beam left out.
         let GridBuffers {
@@ -330,13 +340,20 @@ impl LocalGrid {
                 let sigma_origin = (direction.transpose() * origin_covariance * direction)[0]
                     .max(0.0)
                     .sqrt();
-                let Some((a, e)) = lookup::direction_bin(
-                    [&azimuth, &elevation],
-                    slack,
-                    &tangents,
-                    &(grid_from_scene * direction),
-                ) else {
-                    return left_out;
+                let in_grid = grid_from_scene * direction;
+                let bin = match nominal.and_then(|n| n.bin_near(i, &in_grid)) {
+                    Some(bin) => bin,
+                    None => {
+                        let Some((a, e)) = lookup::direction_bin(
+                            [&azimuth, &elevation],
+                            slack,
+                            &tangents,
+                            &in_grid,
+                        ) else {
+                            return left_out;
+                        };
+                        (a * elevation.count + e) as u32
+                    }
                 };
                 let beam = Beam {
                     direction,
@@ -344,7 +361,7 @@ impl LocalGrid {
                     sigma,
                     sigma_origin,
                 };
-                ((a * elevation.count + e) as u32, beam)
+                (bin, beam)
             })
             .unzip_into_vecs(&mut bin_of, &mut unbinned);
         // A counting sort by bin, stable: beams keep their input order
@@ -500,10 +517,13 @@ impl LocalGrid {
                     } else {
                         other.range
                     };
-                    if bound < surface.range {
-                        surface.range = bound;
-                        surface.sigma = surface.sigma.max(other.sigma);
-                    }
+                    // Selects, not a branch: whether a neighbour is nearer
+                    // is a coin toss on a smooth surface, and mispredicted
+                    // branches were most of this loop's time.
+                    let nearer = bound < surface.range;
+                    let sigma = surface.sigma.max(other.sigma);
+                    surface.range = if nearer { bound } else { surface.range };
+                    surface.sigma = if nearer { sigma } else { surface.sigma };
                 }
             }
             Some(surface)
@@ -598,6 +618,9 @@ impl LocalGrid {
 }
 
 mod lookup;
+mod nominal;
 mod tangent;
+
+pub use nominal::NominalBins;
 #[cfg(test)]
 mod tests;

@@ -1,6 +1,6 @@
 //! One viewpoint's local grid from its propagated beams (docs/math.md §4.5, §5.1).
 
-use super::spherical::{Axis, BeamEnd, GridBuffers, GridLayout, LocalGrid};
+use super::spherical::{Axis, BeamEnd, GridBuffers, GridLayout, LocalGrid, NominalBins};
 use crate::geometry::{Matrix3, Vector3};
 
 /// The angular layout of the scanner: its column and row angles (rad).
@@ -44,7 +44,7 @@ pub fn local_grid(
         GridBuffers::default(),
         (origin, origin_covariance),
         scene_from_camera,
-        raster,
+        (raster, None),
         ends,
         max_range,
     )
@@ -52,18 +52,32 @@ pub fn local_grid(
 
 /// [`local_grid`] from `(count, end)`: beam `i < count` ends at `end(i)`,
 /// computed as it is binned ([`LocalGrid::from_ends_in`]), in the memory of
-/// `buffers`.
+/// `buffers`; `nominal` ([`nominal_bins`] of the same raster) speeds up the
+/// binning without changing it.
 pub fn local_grid_of(
     buffers: GridBuffers,
     (origin, origin_covariance): (&Vector3, &Matrix3),
     scene_from_camera: &Matrix3,
-    raster: Raster,
+    (raster, nominal): (Raster, Option<&NominalBins<'_>>),
     ends: (usize, impl Fn(usize) -> Option<BeamEnd> + Sync),
     max_range: f64,
 ) -> LocalGrid {
-    // Grid x = camera z (boresight), grid y = camera x, grid z = camera y.
-    let camera_from_grid = Matrix3::new(0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0);
-    let scene_from_grid = scene_from_camera * camera_from_grid;
+    let (azimuth, elevation) = raster_axes(raster);
+    let layout = GridLayout {
+        origin: *origin,
+        scene_from_grid: scene_from_camera * CAMERA_FROM_GRID,
+        azimuth,
+        elevation,
+        max_range,
+    };
+    LocalGrid::from_ends_in(buffers, layout, nominal, ends, origin_covariance)
+}
+
+/// Grid x = camera z (boresight), grid y = camera x, grid z = camera y.
+const CAMERA_FROM_GRID: Matrix3 = Matrix3::new(0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0);
+
+/// The grid's azimuth and elevation axes: one bin per raster column and row.
+fn raster_axes(raster: Raster) -> (Axis, Axis) {
     let h_step = if raster.horizontal.len() >= 2 {
         raster.horizontal[1] - raster.horizontal[0]
     } else {
@@ -74,14 +88,23 @@ pub fn local_grid_of(
     } else {
         h_step
     };
-    let layout = GridLayout {
-        origin: *origin,
-        scene_from_grid,
-        azimuth: angle_axis(raster.horizontal, v_step),
-        elevation: angle_axis(raster.vertical, h_step),
-        max_range,
-    };
-    LocalGrid::from_ends_in(buffers, layout, ends, origin_covariance)
+    (
+        angle_axis(raster.horizontal, v_step),
+        angle_axis(raster.vertical, h_step),
+    )
+}
+
+/// The bins of the scanner's nominal beam directions (camera frame, beam
+/// order) on the grid of `raster`: computed once per map, they answer most
+/// beams' bin lookups in every viewpoint's grid ([`NominalBins`]).
+pub fn nominal_bins<'a>(raster: Raster, camera_directions: &'a [Vector3]) -> NominalBins<'a> {
+    let (azimuth, elevation) = raster_axes(raster);
+    NominalBins::new(
+        camera_directions,
+        CAMERA_FROM_GRID.transpose(),
+        azimuth,
+        elevation,
+    )
 }
 
 #[cfg(test)]

@@ -123,6 +123,19 @@ impl TangentBins {
         let [lo, hi] = *self.clear.get(bin)?;
         (t > lo && t < hi).then_some(bin as isize)
     }
+
+    /// The bin `k` of the angle θ whose tangent is `t`, inside the axis, and
+    /// a lower bound (rad) on θ's distance to the edges of bin k's clear
+    /// interval `[lo, hi]`; `None` when [`TangentBins::locate`] is undecided
+    /// or off the axis. No angle is computed: `atan` has slope
+    /// `1/(1 + s²) ≥ 1/(1 + max(lo², hi²))` between the edges.
+    #[inline]
+    pub(crate) fn locate_with_clearance(&self, t: f64) -> Option<(usize, f64)> {
+        let k = usize::try_from(self.locate(t)?).ok()?;
+        let [lo, hi] = *self.clear.get(k)?;
+        let gap = (t - lo).min(hi - t);
+        Some((k, gap / (1.0 + (lo * lo).max(hi * hi))))
+    }
 }
 
 /// Denominators of the addition formula below this are not divided by: the
@@ -179,6 +192,33 @@ mod tests {
             }
         }
         assert!(decided > 199_900, "{decided}");
+    }
+
+    #[test]
+    fn a_clearance_never_exceeds_the_angles_distance_to_the_edges() {
+        let axis = axis(361, 0.25);
+        let bins = TangentBins::new(&axis);
+        let (mut decided, mut close) = (0, 0);
+        for i in 0..200_000 {
+            // The axis spans ±45°.
+            let angle = -0.8 + 1.6 * i as f64 / 200_000.0;
+            let Some((k, clearance)) = bins.locate_with_clearance(angle.tan()) else {
+                continue;
+            };
+            decided += 1;
+            assert_eq!(k as isize, axis.index(angle), "{angle}");
+            let lower = axis.start + k as f64 * axis.step;
+            let exact = (angle - lower).min(lower + axis.step - angle);
+            assert!(clearance <= exact, "{angle}: {clearance} > {exact}");
+            close += usize::from(clearance > 0.98 * exact - 1e-9);
+        }
+        // Not needlessly small: within a fiftieth of the truth (the slope of
+        // `atan` varies that much across a 0.25° bin at 45°).
+        assert!(
+            decided > 196_000 && close == decided,
+            "{close} of {decided}"
+        );
+        assert_eq!(bins.locate_with_clearance(2.0), None); // off the axis
     }
 
     #[test]

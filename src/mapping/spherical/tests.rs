@@ -45,7 +45,7 @@ fn random_grid_in(
         max_range: 2.0,
     };
     let ends = (ends.len(), |i| Some(ends[i]));
-    LocalGrid::from_ends_in(buffers, layout, ends, &(Matrix3::identity() * 1e-6))
+    LocalGrid::from_ends_in(buffers, layout, None, ends, &(Matrix3::identity() * 1e-6))
 }
 
 /// Everything a grid answers, bin by bin and tile by tile.
@@ -209,4 +209,83 @@ fn the_query_level_is_the_first_with_at_most_two_tiles_a_side() {
         }
         assert_eq!(super::query_level(span), level, "span {span}");
     }
+}
+
+/// Binning from the nominal directions changes nothing: a grid built with
+/// [`NominalBins`] (beams turned from their nominal directions by up to a
+/// bin, so both the table and the full lookup answer) is the grid built
+/// without, in a rotated grid frame.
+#[test]
+fn nominal_bins_give_the_same_grid() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(29);
+    let scene_from_grid = *nalgebra::Rotation3::from_euler_angles(0.3, -0.2, 1.1).matrix();
+    let axis = |count| Axis {
+        start: -0.2,
+        step: 0.01,
+        count,
+    };
+    let (azimuth, elevation) = (axis(41), axis(33));
+    let mut nominal_directions = Vec::new();
+    let ends: Vec<BeamEnd> = (0..3000)
+        .map(|_| {
+            let nominal = Vector3::new(
+                1.0,
+                rng.random_range(-0.2..0.2),
+                rng.random_range(-0.2..0.12),
+            )
+            .normalize();
+            nominal_directions.push(scene_from_grid * nominal);
+            let turn = if rng.random_bool(0.5) { 1e-6 } else { 0.01 };
+            let in_grid =
+                (nominal + Vector3::from_fn(|_, _| rng.random_range(-1.0..1.0)) * turn).normalize();
+            let direction = scene_from_grid * in_grid;
+            if rng.random_bool(0.1) {
+                BeamEnd::Miss { direction }
+            } else {
+                BeamEnd::Hit {
+                    point: direction * rng.random_range(0.2..1.5),
+                    covariance: Matrix3::identity() * 1e-4,
+                }
+            }
+        })
+        .collect();
+    let layout = GridLayout {
+        origin: Vector3::zeros(),
+        scene_from_grid,
+        azimuth,
+        elevation,
+        max_range: 2.0,
+    };
+    let table = NominalBins::new(
+        &nominal_directions,
+        scene_from_grid.transpose(),
+        azimuth,
+        elevation,
+    );
+    let build = |nominal: Option<&NominalBins<'_>>| {
+        let ends = (ends.len(), |i: usize| Some(ends[i]));
+        let buffers = GridBuffers::default();
+        LocalGrid::from_ends_in(
+            buffers,
+            layout,
+            nominal,
+            ends,
+            &(Matrix3::identity() * 1e-6),
+        )
+    };
+    let decided = ends
+        .iter()
+        .enumerate()
+        .filter(|(i, end)| {
+            let direction = match end {
+                BeamEnd::Hit { point, .. } => point.normalize(),
+                BeamEnd::Miss { direction } => *direction,
+            };
+            table
+                .bin_near(*i, &(scene_from_grid.transpose() * direction))
+                .is_some()
+        })
+        .count();
+    assert!(decided > 1200 && decided < 2500, "decided {decided}");
+    assert_eq!(contents(&build(Some(&table))), contents(&build(None)));
 }
