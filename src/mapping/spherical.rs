@@ -509,21 +509,34 @@ impl LocalGrid {
             }
             let mut surface = own[i];
             let base = surface.range;
-            // The 3 x 3 neighbourhood; the bin itself never lowers `base`.
-            for x in a.saturating_sub(1)..=(a + 1).min(na - 1) {
-                for other in &own[x * ne + e.saturating_sub(1)..=x * ne + (e + 1).min(ne - 1)] {
-                    let bound = if base.is_finite() {
-                        0.5 * (base + other.range)
-                    } else {
-                        other.range
-                    };
-                    // Selects, not a branch: whether a neighbour is nearer
-                    // is a coin toss on a smooth surface, and mispredicted
-                    // branches were most of this loop's time.
-                    let nearer = bound < surface.range;
-                    let sigma = surface.sigma.max(other.sigma);
-                    surface.range = if nearer { bound } else { surface.range };
-                    surface.sigma = if nearer { sigma } else { surface.sigma };
+            let finite = base.is_finite();
+            // Selects, not a branch: whether a neighbour is nearer is a coin
+            // toss on a smooth surface.
+            let mut lower = |other: &Surface| {
+                let bound = if finite {
+                    0.5 * (base + other.range)
+                } else {
+                    other.range
+                };
+                let nearer = bound < surface.range;
+                let sigma = surface.sigma.max(other.sigma);
+                surface.range = if nearer { bound } else { surface.range };
+                surface.sigma = if nearer { sigma } else { surface.sigma };
+            };
+            // The 3 x 3 neighbourhood, in the same order at the border; the
+            // bin itself never lowers `base`. Inside, rows of three known
+            // to the compiler.
+            if a > 0 && a + 1 < na && e > 0 && e + 1 < ne {
+                for x in [a - 1, a, a + 1] {
+                    let start = x * ne + e - 1;
+                    let row: &[Surface; 3] = own[start..start + 3].try_into().expect("three bins");
+                    row.iter().for_each(&mut lower);
+                }
+            } else {
+                for x in a.saturating_sub(1)..(a + 2).min(na) {
+                    own[x * ne + e.saturating_sub(1)..x * ne + (e + 2).min(ne)]
+                        .iter()
+                        .for_each(&mut lower);
                 }
             }
             Some(surface)

@@ -168,6 +168,13 @@ fn a_bins_surface_is_the_nearest_the_surface_comes_within_it() {
             .map(|b| b.range)
             .reduce(f64::min)
     };
+    let widest = |a: usize, e: usize| {
+        grid.bin_beams(a, e)
+            .0
+            .iter()
+            .map(|b| b.sigma)
+            .fold(0.0, f64::max)
+    };
     let mut pulled = 0;
     for a in 0..na {
         for e in 0..ne {
@@ -175,7 +182,7 @@ fn a_bins_surface_is_the_nearest_the_surface_comes_within_it() {
                 assert!(grid.bin_surface(a, e).is_none());
                 continue;
             };
-            let mut expected = own;
+            let (mut expected, mut sigma) = (own, widest(a, e));
             for x in a.saturating_sub(1)..=(a + 1).min(na - 1) {
                 for y in e.saturating_sub(1)..=(e + 1).min(ne - 1) {
                     if let Some(other) = nearest(x, y) {
@@ -186,12 +193,18 @@ fn a_bins_surface_is_the_nearest_the_surface_comes_within_it() {
                         } else {
                             other
                         };
-                        expected = expected.min(bound);
+                        // σ grows by each neighbour that lowers the range
+                        // (in row order), the widest of its beams.
+                        if bound < expected {
+                            expected = bound;
+                            sigma = sigma.max(widest(x, y));
+                        }
                     }
                 }
             }
             let surface = grid.bin_surface(a, e).expect("a filled bin has a surface");
             assert_eq!(surface.range, expected, "bin ({a}, {e})");
+            assert_eq!(surface.sigma, sigma, "bin ({a}, {e})");
             let beams = grid.bin_beams(a, e).0;
             assert!(beams.iter().all(|b| surface.sigma >= b.sigma));
             pulled += usize::from(expected < own);
