@@ -6,6 +6,17 @@ fn random_grid(rng: &mut impl Rng) -> LocalGrid {
     random_grid_in(GridBuffers::default(), rng, 400, [41, 33])
 }
 
+/// A random unit direction within the test grids' bins (and a little
+/// beyond, in elevation).
+fn random_direction(rng: &mut impl Rng) -> Vector3 {
+    Vector3::new(
+        1.0,
+        rng.random_range(-0.2..0.2),
+        rng.random_range(-0.2..0.12),
+    )
+    .normalize()
+}
+
 /// `count` random beams on `bins` (azimuth x elevation) in `buffers`.
 fn random_grid_in(
     buffers: GridBuffers,
@@ -20,12 +31,7 @@ fn random_grid_in(
     };
     let ends: Vec<BeamEnd> = (0..count)
         .map(|_| {
-            let direction = Vector3::new(
-                1.0,
-                rng.random_range(-0.2..0.2),
-                rng.random_range(-0.2..0.12),
-            )
-            .normalize();
+            let direction = random_direction(rng);
             if rng.random_bool(0.1) {
                 BeamEnd::Miss { direction }
             } else {
@@ -241,12 +247,7 @@ fn nominal_bins_give_the_same_grid() {
     let mut nominal_directions = Vec::new();
     let ends: Vec<BeamEnd> = (0..3000)
         .map(|_| {
-            let nominal = Vector3::new(
-                1.0,
-                rng.random_range(-0.2..0.2),
-                rng.random_range(-0.2..0.12),
-            )
-            .normalize();
+            let nominal = random_direction(&mut rng);
             nominal_directions.push(scene_from_grid * nominal);
             let turn = if rng.random_bool(0.5) { 1e-6 } else { 0.01 };
             let in_grid =
