@@ -11,10 +11,11 @@
 //! `c_az` inside its bin's edges (less a margin that dwarfs every rounding),
 //! any `v` within `θ_max = min(c_el, c_az cos(|el_d| + c_el))` of `d` has
 //! `d`'s bin, bit for bit the bin [`super::lookup`] computes. The test is on
-//! the chord: `|v − d|² < (θ_max (1 − θ_max²/24))² ≤ (2 sin(θ_max / 2))²`. Anything else (no tangent
-//! table, a direction off the grid or near an edge, NaN) goes to the full
-//! lookup. The clearances come from the tangent tables (lower bounds, no
-//! `atan`), so the table costs a few divisions per beam, once per map.
+//! the chord: `|v − d|² < (θ_max (1 − θ_max²/24))² ≤ (2 sin(θ_max / 2))²`.
+//! Anything else (no tangent table, a direction off the grid or near an
+//! edge, NaN) goes to the full lookup. The clearances come from the tangent
+//! tables (lower bounds, no `atan`), so the table costs a few divisions per
+//! beam, once per map.
 
 use super::tangent::TangentBins;
 use super::Axis;
@@ -35,6 +36,7 @@ struct Entry {
     bin: u32,
 }
 
+/// The entry of a direction the table does not decide.
 const NONE: Entry = Entry {
     reach2: -1.0,
     bin: u32::MAX,
@@ -95,23 +97,22 @@ impl<'a> NominalBins<'a> {
 /// The entry of the unit direction `d`, from the tangents of its angles
 /// (no angle is computed: see [`TangentBins::locate_with_clearance`]).
 fn entry(d: &Vector3, tangents: &[TangentBins; 2], elevation_count: usize) -> Entry {
-    let none = NONE;
     // Unit to rounding, and in front (the tangent tables' half-space).
     if !((d.norm_squared() - 1.0).abs() < 1e-12 && d.x > 0.0) {
-        return none;
+        return NONE;
     }
     let rho = (d.x * d.x + d.y * d.y).sqrt();
     let (Some((a, c_az)), Some((e, c_el))) = (
         tangents[0].locate_with_clearance(d.y / d.x),
         tangents[1].locate_with_clearance(d.z / rho),
     ) else {
-        return none;
+        return NONE;
     };
     let (c_az, c_el) = (c_az - MARGIN, c_el - MARGIN);
     // cos(|el| + c) = cos el cos c − sin|el| sin c ≥ ρ (1 − c²/2) − |z| c.
     let cos_top = rho * (1.0 - 0.5 * c_el * c_el) - d.z.abs() * c_el;
     if !(c_az > 0.0 && c_el > 0.0 && cos_top > 0.0) {
-        return none;
+        return NONE;
     }
     // Shrunk once more by a relative margin: the directions are unit only to
     // rounding, and the chord-to-angle relation holds for unit vectors.
@@ -124,7 +125,7 @@ fn entry(d: &Vector3, tangents: &[TangentBins; 2], elevation_count: usize) -> En
             reach2: (chord * chord * (1.0 - 1e-6)) as f32,
             bin,
         },
-        _ => none,
+        _ => NONE,
     }
 }
 
