@@ -8,7 +8,8 @@
 use super::Experiment;
 use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Vector3};
-use crate::mapping::merge::merge_with;
+use crate::mapping::merge::MergePlan;
+use crate::mapping::pipeline::prepare_and_insert;
 use crate::mapping::pooling::{pool_ranges, Pooling};
 use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::shared_motion::expect_over_shared_motion;
@@ -26,6 +27,7 @@ use crate::uncertainty::{
 use rayon::prelude::*;
 use std::fmt;
 use std::str::FromStr;
+use std::sync::Mutex;
 
 /// How a map is built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -313,14 +315,27 @@ pub fn build_map_measured(
     }
     let mut tree = Octree::new(resolution);
     let max_range = view.scanner.max_range;
+    // Scans prepared ahead of the one inserted: up to this many per thread.
+    let window = 2 * rayon::current_num_threads();
     if method == Method::RayUpdate {
-        // A pipeline of two updaters: scan i + 1's cells are found (on the
-        // tree's geometry alone) while scan i's are applied.
+        // Each scan's cells are found (on the tree's geometry alone) while
+        // earlier scans' are applied; updaters and their buffers are reused.
         let geometry = Octree::new(resolution);
-        let (mut hits, mut misses) = (Vec::new(), Vec::new());
         let pooling = view.settings.beam_pooling != Pooling::Off;
-        let mut find = |updater: &mut RayUpdater, i: usize| {
+        let spare = Mutex::new(Vec::<(RayUpdater, Vec<Point3>, Vec<Vector3>)>::new());
+        let find = |i: usize| {
             let scan = &scans[i];
+            let (mut updater, mut hits, mut misses) = spare
+                .lock()
+                .ok()
+                .and_then(|mut s| s.pop())
+                .unwrap_or_else(|| {
+                    (
+                        RayUpdater::new(view.settings.update),
+                        Vec::new(),
+                        Vec::new(),
+                    )
+                });
             // With beam pooling the rays end at the pooled points (the
             // run's, when it computed them for every method).
             let shared = measured.filter(|_| pooling).map(|m| &m[i][..]);
@@ -332,23 +347,14 @@ pub fn build_map_measured(
             let origin = ray_inputs_into(view, scan, points, &mut hits, &mut misses) + offset;
             hits.iter_mut().for_each(|h| *h += offset);
             updater.find_cells(&geometry, &origin, &hits, &misses, max_range);
+            (updater, hits, misses)
         };
-        let mut current = RayUpdater::new(view.settings.update);
-        let mut next = RayUpdater::new(view.settings.update);
-        if !scans.is_empty() {
-            find(&mut current, 0);
-        }
-        for i in 0..scans.len() {
-            rayon::join(
-                || current.apply(&mut tree),
-                || {
-                    if i + 1 < scans.len() {
-                        find(&mut next, i + 1);
-                    }
-                },
-            );
-            std::mem::swap(&mut current, &mut next);
-        }
+        prepare_and_insert(scans.len(), window, find, |(updater, hits, misses)| {
+            updater.apply(&mut tree);
+            if let Ok(mut spare) = spare.lock() {
+                spare.push((updater, hits, misses));
+            }
+        });
         tree.shrink_to_fit();
         return Ok(tree);
     }
@@ -395,44 +401,41 @@ pub fn build_map_measured(
             }
             Some(end)
         };
-        let grid = local_grid_of(
+        local_grid_of(
             buffers,
             (&(origin.mean + offset), &origin.covariance),
             &scene_from_camera,
             (raster, Some(&nominal)),
             (scan.measurements.len(), end),
             max_range,
-        );
-        let surfaces = SurfaceCells::new(&grid, &options.model, &geometry);
-        (grid, surfaces)
+        )
     };
-    if rayon::current_num_threads() == 1 {
-        // Nothing to overlap: one grid at a time, each built in the memory
-        // of the one before.
-        let mut buffers = GridBuffers::default();
-        for i in 0..scans.len() {
-            let (grid, surfaces) = grid_of(i, buffers);
-            merge_with(&mut tree, &grid, &surfaces, &options);
-            buffers = grid.into_buffers();
+    // Each scan's grid is built and searched (on the tree's geometry alone)
+    // while earlier scans' changes are applied; the grids' and the plans'
+    // memory is reused from scan to scan.
+    let spare_grids = Mutex::new(Vec::<GridBuffers>::new());
+    let spare_plans = Mutex::new(Vec::<MergePlan>::new());
+    let search = |i: usize| {
+        let buffers = spare_grids.lock().ok().and_then(|mut s| s.pop());
+        let grid = grid_of(i, buffers.unwrap_or_default());
+        let surfaces = SurfaceCells::new(&grid, &options.model, &geometry);
+        let mut plan = spare_plans
+            .lock()
+            .ok()
+            .and_then(|mut s| s.pop())
+            .unwrap_or_default();
+        plan.search(&geometry, &grid, &surfaces, &options);
+        if let Ok(mut spare) = spare_grids.lock() {
+            spare.push(grid.into_buffers());
         }
-        return finish_opdf(tree, scans, method, offset, options.clamp);
-    }
-    // A pipeline: the next scan's grid is built (in the memory of the one
-    // before this) while this one is merged.
-    let mut next = (!scans.is_empty()).then(|| grid_of(0, GridBuffers::default()));
-    let mut spare = GridBuffers::default();
-    for i in 0..scans.len() {
-        let (grid, surfaces) = next.take().expect("a grid per scan");
-        let buffers = std::mem::take(&mut spare);
-        let ((), following) = rayon::join(
-            || {
-                merge_with(&mut tree, &grid, &surfaces, &options);
-            },
-            || (i + 1 < scans.len()).then(|| grid_of(i + 1, buffers)),
-        );
-        spare = grid.into_buffers();
-        next = following;
-    }
+        plan
+    };
+    prepare_and_insert(scans.len(), window, search, |plan| {
+        plan.apply(&mut tree, options.clamp);
+        if let Ok(mut spare) = spare_plans.lock() {
+            spare.push(plan);
+        }
+    });
     finish_opdf(tree, scans, method, offset, options.clamp)
 }
 
@@ -622,6 +625,33 @@ mod tests {
                 "{method}: {differ} of {} leaves moved elsewhere",
                 leaves.len()
             );
+        }
+    }
+
+    #[test]
+    fn a_map_is_the_same_file_whatever_the_thread_count() {
+        // Scans are prepared on every thread and applied in order
+        // (mapping::pipeline): one, two and three threads, the same bytes.
+        let experiment = quickstart();
+        let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+        let view = MapperView::of(&experiment);
+        let clamp = view.settings.update.clamp;
+        for method in [Method::Unscented, Method::Correlated, Method::RayUpdate] {
+            let file = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let tree = pool.install(|| {
+                    build_map(&view, &run.scans, method, 0.05, &Vector3::zeros()).unwrap()
+                });
+                crate::mapping::octomap_io::to_bt(&tree, clamp)
+            };
+            let one = file(1);
+            assert!(one.len() > 1000, "{method}: {} bytes", one.len());
+            for threads in [2, 3] {
+                assert!(file(threads) == one, "{method}: {threads} threads");
+            }
         }
     }
 

@@ -69,43 +69,81 @@ pub fn merge_with(
     surfaces: &SurfaceCells,
     options: &MergeOptions,
 ) -> MergeStats {
-    if grid.beam_count() == 0 {
-        return MergeStats::default();
-    }
-    let planner = Planner {
-        tree,
-        grid,
-        surfaces,
-        options,
-        task_depth: task_depth(tree.resolution()),
-    };
-    let mut skeleton = Plan::default();
-    planner.search(Key([0, 0, 0]), 0, None, &mut skeleton, true);
-    let tasks: Vec<Plan> = skeleton
-        .tasks
-        .par_iter()
-        .map(|&key| {
-            let mut plan = Plan::default();
-            planner.search(key, planner.task_depth, None, &mut plan, false);
-            plan
-        })
-        .collect();
-    let mut stats = skeleton.stats;
-    let mut tasks = tasks.into_iter();
-    // The search's order is depth first: the tree takes the changes in one walk.
-    let mut changes = Vec::with_capacity(skeleton.updates.len());
-    for update in &skeleton.updates {
-        match *update {
-            Update::Task => {
-                let task = tasks.next().expect("one plan per task");
-                stats.add(&task.stats);
-                changes.extend(task.updates.iter().map(Update::change));
+    let mut plan = MergePlan::default();
+    plan.search(tree, grid, surfaces, options);
+    plan.apply(tree, options.clamp);
+    plan.stats
+}
+
+/// The changes a merge makes to the tree, found from the tree's geometry
+/// alone (its resolution; not its contents), so that a grid can be searched
+/// while earlier ones are applied: [`MergePlan::search`], then
+/// [`MergePlan::apply`]. Its memory is reused from grid to grid.
+#[derive(Default)]
+pub struct MergePlan {
+    /// `(Morton code, depth, delta)` in depth-first order.
+    changes: Vec<(u64, u8, f32)>,
+    /// The search's counters.
+    pub stats: MergeStats,
+}
+
+impl MergePlan {
+    /// Searches `grid` (with its `surfaces`) on the cells of `geometry`'s
+    /// resolution, one rayon task per node of [`task_depth`]; the changes
+    /// are kept in depth-first order, so the tree they make is the same
+    /// whatever the thread count.
+    pub fn search(
+        &mut self,
+        geometry: &Octree,
+        grid: &LocalGrid,
+        surfaces: &SurfaceCells,
+        options: &MergeOptions,
+    ) {
+        self.changes.clear();
+        self.stats = MergeStats::default();
+        if grid.beam_count() == 0 {
+            return;
+        }
+        let planner = Planner {
+            tree: geometry,
+            grid,
+            surfaces,
+            options,
+            task_depth: task_depth(geometry.resolution()),
+        };
+        let mut skeleton = Plan::default();
+        planner.search(Key([0, 0, 0]), 0, None, &mut skeleton, true);
+        let tasks: Vec<Plan> = skeleton
+            .tasks
+            .par_iter()
+            .map(|&key| {
+                let mut plan = Plan::default();
+                planner.search(key, planner.task_depth, None, &mut plan, false);
+                plan
+            })
+            .collect();
+        self.stats = skeleton.stats;
+        let mut tasks = tasks.into_iter();
+        // The search's order is depth first: the tree takes the changes in
+        // one walk.
+        self.changes.reserve(skeleton.updates.len());
+        for update in &skeleton.updates {
+            match *update {
+                Update::Task => {
+                    let task = tasks.next().expect("one plan per task");
+                    self.stats.add(&task.stats);
+                    self.changes.extend(task.updates.iter().map(Update::change));
+                }
+                ref u => self.changes.push(u.change()),
             }
-            ref u => changes.push(u.change()),
         }
     }
-    tree.update_depth_first(changes, options.clamp);
-    stats
+
+    /// Applies the changes found by the last [`MergePlan::search`] to
+    /// `tree` (of the searched resolution), with the map-level `clamp`.
+    pub fn apply(&self, tree: &mut Octree, clamp: Clamp) {
+        tree.update_depth_first(self.changes.iter().copied(), clamp);
+    }
 }
 
 impl MergeStats {

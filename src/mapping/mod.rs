@@ -26,6 +26,7 @@ pub mod merge;
 pub mod octomap_io;
 pub mod octree;
 pub mod opdf;
+pub mod pipeline;
 pub mod pooling;
 pub mod ray_update;
 pub mod scan_graph;

@@ -500,16 +500,17 @@ impl RayUpdater {
                 .codes
                 .retain(|c| !occupied.contains(&Key::from_morton(*c)));
         }
+        // In depth-first (Morton) order, so that `apply` walks the tree
+        // once; sorted here, so that a pipeline sorts one scan's cells while
+        // another's are applied.
+        radsort::sort(&mut self.free.codes);
+        radsort::sort(&mut self.occupied.codes);
     }
 
     /// The second half of [`RayUpdater::insert_scan`]: the cells found by
     /// the last [`RayUpdater::find_cells`] updated, free then occupied, each
-    /// set in depth-first (Morton) order so that the tree is walked once.
-    /// (Sorting here, not in `find_cells`, lets a pipeline sort one scan's
-    /// cells while the next scan's rays are walked.)
-    pub fn apply(&mut self, tree: &mut Octree) {
-        radsort::sort(&mut self.free.codes);
-        radsort::sort(&mut self.occupied.codes);
+    /// set in depth-first order (the tree walked once per set).
+    pub fn apply(&self, tree: &mut Octree) {
         let rule = self.rule;
         tree.update_sorted(&self.free.codes, rule.miss, rule.clamp);
         tree.update_sorted(&self.occupied.codes, rule.hit, rule.clamp);
