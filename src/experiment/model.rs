@@ -315,8 +315,8 @@ pub fn build_map_measured(
     }
     let mut tree = Octree::new(resolution);
     let max_range = view.scanner.max_range;
-    // Scans prepared ahead of the one inserted: up to this many per thread.
-    let window = 2 * rayon::current_num_threads();
+    // Scans prepared and not yet inserted: at most one more than threads.
+    let window = rayon::current_num_threads() + 1;
     if method == Method::RayUpdate {
         // Each scan's cells are found (on the tree's geometry alone) while
         // earlier scans' are applied; updaters and their buffers are reused.
