@@ -147,13 +147,17 @@ mod tests {
         let most = AtomicUsize::new(0);
         pool.install(|| {
             prepare_and_insert(
-                16,
+                4,
                 4,
                 |_| {
                     let n = running.fetch_add(1, Relaxed) + 1;
                     most.fetch_max(n, Relaxed);
-                    // Long enough for the other thread to take up a scan.
-                    std::thread::sleep(std::time::Duration::from_millis(5));
+                    // Hold the scan until another thread has taken one up
+                    // beside it (or, if none ever does, two seconds).
+                    let start = std::time::Instant::now();
+                    while most.load(Relaxed) < 2 && start.elapsed().as_secs() < 2 {
+                        std::thread::sleep(std::time::Duration::from_millis(1));
+                    }
                     running.fetch_sub(1, Relaxed);
                 },
                 |()| {},
