@@ -465,6 +465,7 @@ impl RayUpdater {
                 occupied: &self.occupied,
                 strides: std::array::from_fn(|axis| self.free.stride(axis)),
                 lanes: !self.one_at_a_time,
+                wide: !self.one_at_a_time,
             };
             let hits = hits.par_chunks(RAYS_PER_TASK).map(Rays::Hits);
             let misses = misses.par_chunks(RAYS_PER_TASK).map(Rays::Misses);
@@ -522,3 +523,5 @@ mod dense;
 mod lanes;
 #[cfg(test)]
 mod tests;
+#[cfg(target_arch = "x86_64")]
+mod wide;

@@ -26,6 +26,9 @@ pub(super) struct DenseWalk<'a> {
     /// Four rays at once in AVX2 vectors where the CPU has them
     /// ([`lanes`](super::lanes)); false: one at a time (tests compare).
     pub lanes: bool,
+    /// With `lanes`, eight rays at once in AVX-512 vectors where the CPU
+    /// has them ([`wide`](super::wide)); false: four (tests compare).
+    pub wide: bool,
 }
 
 /// One ray's walk on a bitmap, at its start: the [`Dda`] with steps as
@@ -113,6 +116,12 @@ impl DenseWalk<'_> {
             return;
         }
         mark(&self.free.bits, self.start);
+        #[cfg(target_arch = "x86_64")]
+        if self.lanes && self.wide && std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F (checked just above).
+            unsafe { super::wide::mark_rays(&self.free.bits, walks) };
+            return;
+        }
         #[cfg(target_arch = "x86_64")]
         if self.lanes && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above).

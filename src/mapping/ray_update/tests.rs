@@ -290,30 +290,62 @@ fn four_lanes_set_up_and_walk_rays_bit_for_bit_as_one_at_a_time() {
     if !std::arch::is_x86_feature_detected!("avx2") {
         eprintln!("no AVX2 on this CPU: both ways walk one ray at a time");
     }
-    let (res, max_range) = (0.05, 2.0);
-    let tree = Octree::new(res);
+    let res = 0.05;
     let origin = Point3::new(0.013, -0.031, 0.257);
-    let start = tree.key(&origin).unwrap();
     // 4001 hits and 1003 misses: the last chunks of four are partial.
     let hits = awkward_hits(&origin, res, 3999, 5);
     let misses = awkward_misses(999, 6);
-    let ends = hits.iter().map(|p| RayEnd::of_hit(&origin, p, max_range));
-    let ends: Vec<RayEnd> = ends
-        .chain(
-            misses
-                .iter()
-                .map(|d| RayEnd::of_miss(&origin, d, max_range)),
-        )
-        .collect();
-    assert!(ends.iter().filter(|e| e.hit).count() > 1000);
+    // Some hits beyond the walks' 2 m: truncated, they only carve.
+    let beyond = hits.iter().filter(|p| (*p - origin).norm() > 2.0).count();
     assert!(
-        hits.iter()
-            .filter(|p| (*p - origin).norm() > max_range)
-            .count()
-            > 200
+        beyond > 200 && hits.len() - beyond > 1000,
+        "{beyond} beyond"
     );
-    let (lo, hi) = key_box(&tree, start, &origin, &hits, &misses, max_range);
-    let walked = |lanes: bool| {
+    let walks = assert_lanes_walk_as_one(res, &origin, &hits, &misses);
+    assert!(walks > 4000, "{walks} walks");
+}
+
+#[test]
+fn lanes_break_ties_between_axes_as_one_at_a_time() {
+    // From a cell's centre along diagonals, every crossing is a tie
+    // between two or three axes (exactly: the spacings are equal), which
+    // OctoMap's choice breaks toward z, then y.
+    let res = 0.05;
+    let origin = Octree::new(res).center(&Key([32768 + 3, 32768 - 2, 32768 + 5]), 16);
+    let mut misses = Vec::new();
+    for sx in [-1.0, 0.0, 1.0] {
+        for sy in [-1.0, 0.0, 1.0] {
+            for sz in [-1.0, 0.0, 1.0] {
+                let d = Vector3::new(sx, sy, sz);
+                if d.norm() > 0.0 {
+                    misses.push(d.normalize());
+                }
+            }
+        }
+    }
+    let hits: Vec<Point3> = misses
+        .iter()
+        .flat_map(|d| (1..=7).map(move |k| origin + d * (0.37 * f64::from(k))))
+        .collect();
+    let walks = assert_lanes_walk_as_one(res, &origin, &hits, &misses);
+    assert!(walks > 180, "{walks} walks");
+}
+
+/// Walks the rays of `hits` and `misses` from `origin` one at a time, four
+/// at a time and eight at a time (where the CPU has the vectors) and
+/// asserts the same set-up and the same cells; the number of walks.
+fn assert_lanes_walk_as_one(
+    res: f64,
+    origin: &Point3,
+    hits: &[Point3],
+    misses: &[Vector3],
+) -> usize {
+    let max_range = 2.0;
+    let origin = *origin;
+    let tree = Octree::new(res);
+    let start = tree.key(&origin).unwrap();
+    let (lo, hi) = key_box(&tree, start, &origin, hits, misses, max_range);
+    let walked = |lanes: bool, wide: bool| {
         let (mut free, mut occupied) = (CellSet::default(), CellSet::default());
         let lo = lo.map(|v| v - 1);
         let hi = hi.map(|v| v + 1);
@@ -329,10 +361,11 @@ fn four_lanes_set_up_and_walk_rays_bit_for_bit_as_one_at_a_time() {
             occupied: &occupied,
             strides: std::array::from_fn(|axis| free.stride(axis)),
             lanes,
+            wide,
         };
         let mut walks = Vec::new();
-        dense.begin_hits(&hits, &mut walks);
-        dense.begin_misses(&misses, &mut walks);
+        dense.begin_hits(hits, &mut walks);
+        dense.begin_misses(misses, &mut walks);
         // Bit for bit, -0.0 and 0.0 apart.
         let set_up = format!("{walks:?}");
         dense.mark_rays(&walks);
@@ -340,11 +373,19 @@ fn four_lanes_set_up_and_walk_rays_bit_for_bit_as_one_at_a_time() {
             |set: &CellSet| -> Vec<u64> { set.bits.iter().map(|w| w.load(Relaxed)).collect() };
         (walks.len(), set_up, bits(&free), bits(&occupied))
     };
-    let (four, one) = (walked(true), walked(false));
-    assert!(four.0 > 4000, "{} walks", four.0);
+    let (four, one) = (walked(true, false), walked(false, false));
     assert_eq!(four.1, one.1, "the walks' set-up");
     assert!(four.2 == one.2, "the free cells");
     assert!(four.3 == one.3, "the occupied cells");
+    // Eight lanes (AVX-512) mark the same cells.
+    #[cfg(target_arch = "x86_64")]
+    if !std::arch::is_x86_feature_detected!("avx512f") {
+        eprintln!("no AVX-512F on this CPU: eight lanes not compared");
+    }
+    let eight = walked(true, true);
+    assert!(eight.2 == one.2, "the free cells, eight lanes");
+    assert!(eight.3 == one.3, "the occupied cells, eight lanes");
+    one.0
 }
 
 #[test]

@@ -1,0 +1,187 @@
+//! Eight rays walked at once, one per lane of AVX-512 vectors: the walk of
+//! [`lanes`](super::lanes) with twice the lanes. Lane by lane the scalar
+//! walk's comparisons and additions ([`finish`]); a lane whose axis is not
+//! taken is left as it is (masked additions), so the same cells.
+
+use super::dense::{finish, Walk};
+use super::mark;
+use std::arch::x86_64::*;
+use std::sync::atomic::AtomicU64;
+
+/// Eight walks' state, lane `k` holding one ray (the fields of [`Walk`]).
+#[derive(Clone, Copy)]
+struct Lanes {
+    tx: __m512d,
+    ty: __m512d,
+    tz: __m512d,
+    dx: __m512d,
+    dy: __m512d,
+    dz: __m512d,
+    length: __m512d,
+    ix: __m512i,
+    iy: __m512i,
+    iz: __m512i,
+    index: __m512i,
+    stop: __m512i,
+}
+
+/// Marks the cells of every walk, as [`finish`] does one by one.
+///
+/// # Safety
+/// The CPU must have AVX-512F.
+#[target_feature(enable = "avx512f")]
+pub(super) unsafe fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
+    let Some(first) = walks.first_chunk::<8>() else {
+        walks.iter().for_each(|w| finish(bits, *w));
+        return;
+    };
+    let mut lanes = Lanes::new(first);
+    let mut next = 8;
+    loop {
+        lanes.step();
+        let done = lanes.done();
+        let index = lanes.indices();
+        if done == 0 {
+            for i in index {
+                mark(bits, i as usize);
+            }
+            continue;
+        }
+        // A lane's ray ended: the lane takes the next ray.
+        let mut live = 0u8;
+        for (lane, &i) in index.iter().enumerate() {
+            if done & 1 << lane == 0 {
+                mark(bits, i as usize);
+                live |= 1 << lane;
+            } else if let Some(walk) = walks.get(next) {
+                lanes.set(lane, walk);
+                next += 1;
+                live |= 1 << lane;
+            }
+        }
+        if live != 0xff {
+            // No rays left for the lanes that ended: the others finish
+            // one by one.
+            for lane in (0..8).filter(|lane| live & 1 << lane != 0) {
+                finish(bits, lanes.get(lane));
+            }
+            return;
+        }
+    }
+}
+
+impl Lanes {
+    #[target_feature(enable = "avx512f")]
+    fn new(walks: &[Walk; 8]) -> Self {
+        let f = |field: fn(&Walk) -> f64| {
+            let v: [f64; 8] = std::array::from_fn(|k| field(&walks[k]));
+            // SAFETY: eight f64 read from an array of eight.
+            unsafe { _mm512_loadu_pd(v.as_ptr()) }
+        };
+        let i = |field: fn(&Walk) -> isize| {
+            let v: [i64; 8] = std::array::from_fn(|k| field(&walks[k]) as i64);
+            // SAFETY: eight i64 read from an array of eight.
+            unsafe { _mm512_loadu_epi64(v.as_ptr()) }
+        };
+        Lanes {
+            tx: f(|w| w.t_max[0]),
+            ty: f(|w| w.t_max[1]),
+            tz: f(|w| w.t_max[2]),
+            dx: f(|w| w.t_delta[0]),
+            dy: f(|w| w.t_delta[1]),
+            dz: f(|w| w.t_delta[2]),
+            length: f(|w| w.length),
+            ix: i(|w| w.steps[0]),
+            iy: i(|w| w.steps[1]),
+            iz: i(|w| w.steps[2]),
+            index: i(|w| w.index),
+            stop: i(|w| w.stop),
+        }
+    }
+
+    /// One step of every lane: x if before y and z, else z; y if before
+    /// z, else z (OctoMap's choice, as in [`finish`]).
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    fn step(&mut self) {
+        let x_before_y = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(self.tx, self.ty);
+        let x_before_z = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(self.tx, self.tz);
+        let y_before_z = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(self.ty, self.tz);
+        let x = x_before_y & x_before_z;
+        let y = !x_before_y & y_before_z;
+        let z = !(x | y);
+        self.tx = _mm512_mask_add_pd(self.tx, x, self.tx, self.dx);
+        self.ty = _mm512_mask_add_pd(self.ty, y, self.ty, self.dy);
+        self.tz = _mm512_mask_add_pd(self.tz, z, self.tz, self.dz);
+        let step = _mm512_mask_mov_epi64(_mm512_mask_mov_epi64(self.iz, y, self.iy), x, self.ix);
+        self.index = _mm512_add_epi64(self.index, step);
+    }
+
+    /// The lanes whose walk has ended (bit `k` for lane `k`): at the end
+    /// cell, or past the segment's length on every axis.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    fn done(&self) -> u8 {
+        let at_stop = _mm512_cmpeq_epi64_mask(self.index, self.stop);
+        // All three past the length: the least is (no t is NaN).
+        let least = _mm512_min_pd(_mm512_min_pd(self.tx, self.ty), self.tz);
+        at_stop | _mm512_cmp_pd_mask::<_CMP_GT_OQ>(least, self.length)
+    }
+
+    /// The lanes' cells (bitmap indices).
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    fn indices(&self) -> [i64; 8] {
+        let mut out = [0i64; 8];
+        // SAFETY: eight i64 written to an array of eight.
+        unsafe { _mm512_storeu_epi64(out.as_mut_ptr(), self.index) };
+        out
+    }
+
+    /// Puts `walk` in `lane`.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    fn set(&mut self, lane: usize, walk: &Walk) {
+        let k: __mmask8 = 1 << lane;
+        let f = |old: __m512d, new: f64| _mm512_mask_mov_pd(old, k, _mm512_set1_pd(new));
+        let i =
+            |old: __m512i, new: isize| _mm512_mask_mov_epi64(old, k, _mm512_set1_epi64(new as i64));
+        self.tx = f(self.tx, walk.t_max[0]);
+        self.ty = f(self.ty, walk.t_max[1]);
+        self.tz = f(self.tz, walk.t_max[2]);
+        self.dx = f(self.dx, walk.t_delta[0]);
+        self.dy = f(self.dy, walk.t_delta[1]);
+        self.dz = f(self.dz, walk.t_delta[2]);
+        self.length = f(self.length, walk.length);
+        self.ix = i(self.ix, walk.steps[0]);
+        self.iy = i(self.iy, walk.steps[1]);
+        self.iz = i(self.iz, walk.steps[2]);
+        self.index = i(self.index, walk.index);
+        self.stop = i(self.stop, walk.stop);
+    }
+
+    /// The walk in `lane`, where it stands.
+    #[target_feature(enable = "avx512f")]
+    fn get(&self, lane: usize) -> Walk {
+        let f = |v: __m512d| {
+            let mut out = [0.0f64; 8];
+            // SAFETY: eight f64 written to an array of eight.
+            unsafe { _mm512_storeu_pd(out.as_mut_ptr(), v) };
+            out[lane]
+        };
+        let i = |v: __m512i| {
+            let mut out = [0i64; 8];
+            // SAFETY: eight i64 written to an array of eight.
+            unsafe { _mm512_storeu_epi64(out.as_mut_ptr(), v) };
+            out[lane] as isize
+        };
+        Walk {
+            t_max: [f(self.tx), f(self.ty), f(self.tz)],
+            t_delta: [f(self.dx), f(self.dy), f(self.dz)],
+            length: f(self.length),
+            steps: [i(self.ix), i(self.iy), i(self.iz)],
+            index: i(self.index),
+            stop: i(self.stop),
+        }
+    }
+}
