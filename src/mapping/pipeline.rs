@@ -29,10 +29,9 @@ pub fn prepare_and_insert<T: Send>(
     count: usize,
     window: usize,
     prepare: impl Fn(usize) -> T + Sync,
-    insert: impl FnMut(T) + Send,
+    mut insert: impl FnMut(T) + Send,
 ) {
     let threads = rayon::current_num_threads();
-    let mut insert = insert;
     if threads == 1 || count <= 1 {
         (0..count).for_each(|i| insert(prepare(i)));
         return;

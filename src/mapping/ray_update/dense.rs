@@ -175,3 +175,77 @@ pub(super) fn finish(bits: &[AtomicU64], walk: Walk) {
         mark(bits, index as usize);
     }
 }
+
+/// Walks held one per lane of vector registers (four with AVX2, eight with
+/// AVX-512): the fields of [`Walk`] lane by lane, stepped together with the
+/// scalar walk's comparisons and additions ([`finish`]). Every method needs
+/// the CPU features its implementation is compiled for.
+pub(super) trait LaneWalks: Sized {
+    /// Walks held at once.
+    const WIDTH: usize;
+    /// The lanes' cells (bitmap indices), lane by lane.
+    type Indices: IntoIterator<Item = i64> + AsRef<[i64]>;
+    /// The first [`LaneWalks::WIDTH`] of `walks`, one per lane.
+    unsafe fn load(walks: &[Walk]) -> Self;
+    /// One step of every lane: x if before y and z, else z; y if before
+    /// z, else z (OctoMap's choice, as in [`finish`]).
+    unsafe fn step(&mut self);
+    /// The lanes whose walk has ended (bit `k` for lane `k`): at the end
+    /// cell, or past the segment's length on every axis.
+    unsafe fn done(&self) -> u32;
+    /// The lanes' cells.
+    unsafe fn indices(&self) -> Self::Indices;
+    /// Puts `walk` in `lane`.
+    unsafe fn set(&mut self, lane: usize, walk: &Walk);
+    /// The walk in `lane`, where it stands.
+    unsafe fn get(&self, lane: usize) -> Walk;
+}
+
+/// Marks the cells of every walk, as [`finish`] does one by one, `L::WIDTH`
+/// walks at a time: a lane whose walk ends takes the next.
+///
+/// # Safety
+/// The CPU must have `L`'s features; inlined into a function compiled for
+/// them.
+#[inline(always)]
+pub(super) unsafe fn mark_lanes<L: LaneWalks>(bits: &[AtomicU64], walks: &[Walk]) {
+    if walks.len() < L::WIDTH {
+        walks.iter().for_each(|w| finish(bits, *w));
+        return;
+    }
+    let all = (1u32 << L::WIDTH) - 1;
+    // SAFETY (every `L` call below): the caller's.
+    let mut lanes = unsafe { L::load(walks) };
+    let mut next = L::WIDTH;
+    loop {
+        unsafe { lanes.step() };
+        let done = unsafe { lanes.done() };
+        let index = unsafe { lanes.indices() };
+        if done == 0 {
+            for i in index {
+                mark(bits, i as usize);
+            }
+            continue;
+        }
+        // A lane's ray ended: the lane takes the next ray.
+        let mut live = 0u32;
+        for (lane, &i) in index.as_ref().iter().enumerate() {
+            if done & 1 << lane == 0 {
+                mark(bits, i as usize);
+                live |= 1 << lane;
+            } else if let Some(walk) = walks.get(next) {
+                unsafe { lanes.set(lane, walk) };
+                next += 1;
+                live |= 1 << lane;
+            }
+        }
+        if live != all {
+            // No rays left for the lanes that ended: the others finish
+            // one by one.
+            for lane in (0..L::WIDTH).filter(|lane| live & 1 << lane != 0) {
+                finish(bits, unsafe { lanes.get(lane) });
+            }
+            return;
+        }
+    }
+}

@@ -1,16 +1,17 @@
 //! Four rays walked at once, one per lane of AVX2 vectors. Lane by lane
-//! these are the scalar walk's comparisons and additions ([`finish`]), so
-//! the same cells: a lane whose axis is not taken adds `0.0` (exact) and
-//! its index adds 0. The axis is chosen by masks, not branches: the scalar
-//! walk spends most of its time on mispredicted axis choices, while here
-//! the four lanes' steps are one short chain of compare, mask and add, and
-//! the only branches left are the rare end of a lane's ray and the marks.
+//! these are the scalar walk's comparisons and additions
+//! ([`finish`](super::dense::finish)), so the same cells: a lane whose
+//! axis is not taken adds `0.0` (exact) and its index adds 0. The axis is
+//! chosen by masks, not branches: the scalar walk spends most of its time
+//! on mispredicted axis choices, while here the four lanes' steps are one
+//! short chain of compare, mask and add, and the only branches left are the
+//! rare end of a lane's ray and the marks.
 //! The rays' set-up (end point, end key, the DDA's first crossings and
 //! spacings) is computed four at a time too, into a buffer before the walk:
 //! a refill that called back into the set-up from the walk's loop made the
 //! compiler keep the lanes' state on the stack.
 
-use super::dense::{finish, DenseWalk, Walk};
+use super::dense::{mark_lanes, DenseWalk, LaneWalks, Walk};
 use super::{mark, Dda, RayEnd};
 use crate::geometry::{Point3, Vector3};
 use crate::mapping::octree::{Key, CENTER};
@@ -190,54 +191,24 @@ struct Lanes {
     stop: __m256i,
 }
 
-/// Marks the cells of every walk, as [`finish`] does one by one.
+/// Marks the cells of every walk, as [`finish`](super::dense::finish)
+/// does one by one, four at a time ([`mark_lanes`]).
 ///
 /// # Safety
 /// The CPU must have AVX2.
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
-    let Some(first) = walks.first_chunk::<4>() else {
-        walks.iter().for_each(|w| finish(bits, *w));
-        return;
-    };
-    let mut lanes = Lanes::new(first);
-    let mut next = 4;
-    loop {
-        lanes.step();
-        let done = lanes.done();
-        let index = lanes.indices();
-        if done == 0 {
-            for i in index {
-                mark(bits, i as usize);
-            }
-            continue;
-        }
-        // A lane's ray ended: the lane takes the next ray.
-        let mut live = 0;
-        for (lane, &i) in index.iter().enumerate() {
-            if done & 1 << lane == 0 {
-                mark(bits, i as usize);
-                live |= 1 << lane;
-            } else if let Some(walk) = walks.get(next) {
-                lanes.set(lane, walk);
-                next += 1;
-                live |= 1 << lane;
-            }
-        }
-        if live != 0b1111 {
-            // No rays left for the lanes that ended: the others finish
-            // one by one.
-            for lane in (0..4).filter(|lane| live & 1 << lane != 0) {
-                finish(bits, lanes.get(lane));
-            }
-            return;
-        }
-    }
+    // SAFETY: the CPU has AVX2 (the caller's), and this function is
+    // compiled for it.
+    unsafe { mark_lanes::<Lanes>(bits, walks) }
 }
 
-impl Lanes {
+impl LaneWalks for Lanes {
+    const WIDTH: usize = 4;
+    type Indices = [i64; 4];
+
     #[target_feature(enable = "avx2")]
-    fn new(walks: &[Walk; 4]) -> Self {
+    unsafe fn load(walks: &[Walk]) -> Self {
         let f = |field: fn(&Walk) -> f64| {
             _mm256_setr_pd(
                 field(&walks[0]),
@@ -271,10 +242,10 @@ impl Lanes {
     }
 
     /// One step of every lane: x if before y and z, else z; y if before
-    /// z, else z (OctoMap's choice, as in [`finish`]).
+    /// z, else z (OctoMap's choice, as in [`finish`](super::dense::finish)).
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn step(&mut self) {
+    unsafe fn step(&mut self) {
         let x_before_y = _mm256_cmp_pd::<_CMP_LT_OQ>(self.tx, self.ty);
         let x_before_z = _mm256_cmp_pd::<_CMP_LT_OQ>(self.tx, self.tz);
         let y_before_z = _mm256_cmp_pd::<_CMP_LT_OQ>(self.ty, self.tz);
@@ -300,25 +271,25 @@ impl Lanes {
     /// cell, or past the segment's length on every axis.
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn done(&self) -> i32 {
+    unsafe fn done(&self) -> u32 {
         let at_stop = _mm256_castsi256_pd(_mm256_cmpeq_epi64(self.index, self.stop));
         // All three past the length: the least is (no t is NaN).
         let least = _mm256_min_pd(_mm256_min_pd(self.tx, self.ty), self.tz);
         let past = _mm256_cmp_pd::<_CMP_GT_OQ>(least, self.length);
-        _mm256_movemask_pd(_mm256_or_pd(at_stop, past))
+        _mm256_movemask_pd(_mm256_or_pd(at_stop, past)) as u32
     }
 
     /// The lanes' cells (bitmap indices).
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn indices(&self) -> [i64; 4] {
+    unsafe fn indices(&self) -> [i64; 4] {
         [0, 1, 2, 3].map(|lane| lane_of(self.index, lane))
     }
 
     /// Puts `walk` in `lane`.
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn set(&mut self, lane: usize, walk: &Walk) {
+    unsafe fn set(&mut self, lane: usize, walk: &Walk) {
         let mask = _mm256_cmpeq_epi64(
             _mm256_setr_epi64x(0, 1, 2, 3),
             _mm256_set1_epi64x(lane as i64),
@@ -345,7 +316,7 @@ impl Lanes {
 
     /// The walk in `lane`, where it stands.
     #[target_feature(enable = "avx2")]
-    fn get(&self, lane: usize) -> Walk {
+    unsafe fn get(&self, lane: usize) -> Walk {
         let f = |v: __m256d| f64::from_bits(lane_of(_mm256_castpd_si256(v), lane) as u64);
         let i = |v: __m256i| lane_of(v, lane) as isize;
         Walk {

@@ -1,10 +1,10 @@
 //! Eight rays walked at once, one per lane of AVX-512 vectors: the walk of
 //! [`lanes`](super::lanes) with twice the lanes. Lane by lane the scalar
-//! walk's comparisons and additions ([`finish`]); a lane whose axis is not
-//! taken is left as it is (masked additions), so the same cells.
+//! walk's comparisons and additions ([`finish`](super::dense::finish)); a
+//! lane whose axis is not taken is left as it is (masked additions), so the
+//! same cells.
 
-use super::dense::{finish, Walk};
-use super::mark;
+use super::dense::{mark_lanes, LaneWalks, Walk};
 use std::arch::x86_64::*;
 use std::sync::atomic::AtomicU64;
 
@@ -25,54 +25,24 @@ struct Lanes {
     stop: __m512i,
 }
 
-/// Marks the cells of every walk, as [`finish`] does one by one.
+/// Marks the cells of every walk, as [`finish`](super::dense::finish)
+/// does one by one, eight at a time ([`mark_lanes`]).
 ///
 /// # Safety
 /// The CPU must have AVX-512F.
 #[target_feature(enable = "avx512f")]
 pub(super) unsafe fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
-    let Some(first) = walks.first_chunk::<8>() else {
-        walks.iter().for_each(|w| finish(bits, *w));
-        return;
-    };
-    let mut lanes = Lanes::new(first);
-    let mut next = 8;
-    loop {
-        lanes.step();
-        let done = lanes.done();
-        let index = lanes.indices();
-        if done == 0 {
-            for i in index {
-                mark(bits, i as usize);
-            }
-            continue;
-        }
-        // A lane's ray ended: the lane takes the next ray.
-        let mut live = 0u8;
-        for (lane, &i) in index.iter().enumerate() {
-            if done & 1 << lane == 0 {
-                mark(bits, i as usize);
-                live |= 1 << lane;
-            } else if let Some(walk) = walks.get(next) {
-                lanes.set(lane, walk);
-                next += 1;
-                live |= 1 << lane;
-            }
-        }
-        if live != 0xff {
-            // No rays left for the lanes that ended: the others finish
-            // one by one.
-            for lane in (0..8).filter(|lane| live & 1 << lane != 0) {
-                finish(bits, lanes.get(lane));
-            }
-            return;
-        }
-    }
+    // SAFETY: the CPU has AVX-512F (the caller's), and this function is
+    // compiled for it.
+    unsafe { mark_lanes::<Lanes>(bits, walks) }
 }
 
-impl Lanes {
+impl LaneWalks for Lanes {
+    const WIDTH: usize = 8;
+    type Indices = [i64; 8];
+
     #[target_feature(enable = "avx512f")]
-    fn new(walks: &[Walk; 8]) -> Self {
+    unsafe fn load(walks: &[Walk]) -> Self {
         let f = |field: fn(&Walk) -> f64| {
             let v: [f64; 8] = std::array::from_fn(|k| field(&walks[k]));
             // SAFETY: eight f64 read from an array of eight.
@@ -100,10 +70,10 @@ impl Lanes {
     }
 
     /// One step of every lane: x if before y and z, else z; y if before
-    /// z, else z (OctoMap's choice, as in [`finish`]).
+    /// z, else z (OctoMap's choice, as in [`finish`](super::dense::finish)).
     #[target_feature(enable = "avx512f")]
     #[inline]
-    fn step(&mut self) {
+    unsafe fn step(&mut self) {
         let x_before_y = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(self.tx, self.ty);
         let x_before_z = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(self.tx, self.tz);
         let y_before_z = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(self.ty, self.tz);
@@ -121,17 +91,17 @@ impl Lanes {
     /// cell, or past the segment's length on every axis.
     #[target_feature(enable = "avx512f")]
     #[inline]
-    fn done(&self) -> u8 {
+    unsafe fn done(&self) -> u32 {
         let at_stop = _mm512_cmpeq_epi64_mask(self.index, self.stop);
         // All three past the length: the least is (no t is NaN).
         let least = _mm512_min_pd(_mm512_min_pd(self.tx, self.ty), self.tz);
-        at_stop | _mm512_cmp_pd_mask::<_CMP_GT_OQ>(least, self.length)
+        u32::from(at_stop | _mm512_cmp_pd_mask::<_CMP_GT_OQ>(least, self.length))
     }
 
     /// The lanes' cells (bitmap indices).
     #[target_feature(enable = "avx512f")]
     #[inline]
-    fn indices(&self) -> [i64; 8] {
+    unsafe fn indices(&self) -> [i64; 8] {
         let mut out = [0i64; 8];
         // SAFETY: eight i64 written to an array of eight.
         unsafe { _mm512_storeu_epi64(out.as_mut_ptr(), self.index) };
@@ -141,7 +111,7 @@ impl Lanes {
     /// Puts `walk` in `lane`.
     #[target_feature(enable = "avx512f")]
     #[inline]
-    fn set(&mut self, lane: usize, walk: &Walk) {
+    unsafe fn set(&mut self, lane: usize, walk: &Walk) {
         let k: __mmask8 = 1 << lane;
         let f = |old: __m512d, new: f64| _mm512_mask_mov_pd(old, k, _mm512_set1_pd(new));
         let i =
@@ -162,7 +132,7 @@ impl Lanes {
 
     /// The walk in `lane`, where it stands.
     #[target_feature(enable = "avx512f")]
-    fn get(&self, lane: usize) -> Walk {
+    unsafe fn get(&self, lane: usize) -> Walk {
         let f = |v: __m512d| {
             let mut out = [0.0f64; 8];
             // SAFETY: eight f64 written to an array of eight.
