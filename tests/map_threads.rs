@@ -1,7 +1,7 @@
 //! One map built on one thread and on several: the same tree, value for
 //! value (the merge's parallel search and the ray update's parallel walk
 //! must not depend on how the work was split or which thread came first;
-//! nor must the beam pooling's parallel windows).
+//! nor must the beam pooling's parallel windows, nor the surface samples).
 
 use sigmap::experiment::model::{build_map, MapperView, Method};
 use sigmap::experiment::{simulate, Experiment};
@@ -25,18 +25,21 @@ fn a_map_is_the_same_on_one_thread_and_on_three() {
     };
     let (one, three) = (pool(1), pool(3));
     // 1 cm: tasks of 16³ cells; 5 cm: of 2³; the pooled map at 2 cm.
+    // The last: surface samples between beams (interpolate_beams).
     let cases = [
-        (Pooling::Off, 0.01, Method::RayUpdate),
-        (Pooling::Off, 0.01, Method::Unscented),
-        (Pooling::Off, 0.01, Method::Correlated),
-        (Pooling::Off, 0.05, Method::RayUpdate),
-        (Pooling::Off, 0.05, Method::Unscented),
-        (Pooling::Off, 0.05, Method::Correlated),
-        (Pooling::Windows, 0.02, Method::Unscented),
-        (Pooling::Faces, 0.02, Method::Unscented),
+        (Pooling::Off, 0.01, Method::RayUpdate, false),
+        (Pooling::Off, 0.01, Method::Unscented, false),
+        (Pooling::Off, 0.01, Method::Correlated, false),
+        (Pooling::Off, 0.05, Method::RayUpdate, false),
+        (Pooling::Off, 0.05, Method::Unscented, false),
+        (Pooling::Off, 0.05, Method::Correlated, false),
+        (Pooling::Windows, 0.02, Method::Unscented, false),
+        (Pooling::Faces, 0.02, Method::Unscented, false),
+        (Pooling::Windows, 0.01, Method::Unscented, true),
     ];
-    for (pooling, resolution, method) in cases {
+    for (pooling, resolution, method, samples) in cases {
         experiment.map.beam_pooling = pooling;
+        experiment.map.interpolate_beams = samples;
         let view = MapperView::of(&experiment);
         let build = |pool: &rayon::ThreadPool| {
             pool.install(|| {

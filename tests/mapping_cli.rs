@@ -45,6 +45,49 @@ fn maps_are_written_and_carry_free_space_and_surfaces() {
 }
 
 #[test]
+fn interpolate_beams_adds_surface_to_opdf_maps_only() {
+    // Surface samples between beams (docs/math.md §5.4) count as surface
+    // evidence in the OPDF maps (more occupied cells); the ray update takes
+    // no samples.
+    let dir = tempfile::tempdir().unwrap();
+    let build = |method: &str, samples: bool| {
+        let out = dir.path().join(format!("{method}_{samples}.ot"));
+        let mut args = vec![
+            "map",
+            "experiments/quickstart.toml",
+            "--method",
+            method,
+            "--resolution",
+            "0.02",
+            "-q",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        if samples {
+            args.push("--interpolate-beams");
+        }
+        let run = sigmap(&args);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        read_octree(&out, Clamp::OCTOMAP).unwrap()
+    };
+    let (plain, sampled) = (build("unscented", false), build("unscented", true));
+    let occupied =
+        |tree: &sigmap::mapping::Octree| tree.leaves().iter().filter(|l| l.value > 0.0).count();
+    assert!(
+        occupied(&sampled) > occupied(&plain),
+        "{} vs {}",
+        occupied(&sampled),
+        occupied(&plain)
+    );
+    let ray = |samples| build("ray_update", samples).leaves();
+    assert_eq!(ray(false), ray(true));
+}
+
+#[test]
 fn five_millimetre_maps() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("fine.bt");

@@ -32,6 +32,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
     if let Some(pooling) = args.beam_pooling {
         experiment.map.beam_pooling = pooling;
     }
+    experiment.map.interpolate_beams |= args.interpolate_beams;
     let resolution = resolution_arg(args.resolution.unwrap_or(experiment.resolution))?;
     let seed = args.run.seed.unwrap_or(experiment.seed);
     let out = args.out.clone().unwrap_or_else(|| {
@@ -121,6 +122,7 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
     };
     let settings = MapSettings {
         beam_pooling: args.beam_pooling.unwrap_or_default(),
+        interpolate_beams: args.interpolate_beams,
         ..MapSettings::default()
     };
     let bar = progress_bar(nodes.len(), "mapping scans", args.run.quiet);

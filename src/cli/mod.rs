@@ -207,6 +207,11 @@ pub(crate) struct MapArgs {
     /// experiment's `beam_pooling`; with --scans off].
     #[arg(long, value_parser = parse_pooling)]
     beam_pooling: Option<crate::mapping::pooling::Pooling>,
+    /// OPDF methods: sample the surface between neighbouring beams whose
+    /// 3x3 window is one plane (docs/math.md §5.4) [default: the
+    /// experiment's `interpolate_beams`; with --scans off].
+    #[arg(long)]
+    interpolate_beams: bool,
     #[command(flatten)]
     run: RunOptions,
 }

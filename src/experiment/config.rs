@@ -34,6 +34,8 @@ struct ExperimentFile {
     grid_offset: bool,
     #[serde(default)]
     beam_pooling: PoolingSpec,
+    #[serde(default)]
+    interpolate_beams: bool,
     /// `[map]`: each setting may be swept as `experiment.map.<name>` once set.
     #[serde(default)]
     map: MapProbabilities,
@@ -216,9 +218,10 @@ pub struct Experiment {
     pub grid_offset: bool,
     /// How maps are built: OctoMap's hit, miss and clamp (`[map]`), the
     /// cell model's bounds (`[map]`) and risk level ε (`risk`, off when
-    /// absent; docs/math.md §5.4), and beam pooling (`beam_pooling =
-    /// "faces"`, `"windows"` or `true`; §5.5). Defaults: OctoMap's and the
-    /// paper's values, pooling off.
+    /// absent; docs/math.md §5.4), beam pooling (`beam_pooling =
+    /// "faces"`, `"windows"` or `true`; §5.5) and surface samples between
+    /// beams (`interpolate_beams = true`; §5.4). Defaults: OctoMap's and the
+    /// paper's values, pooling and samples off.
     pub map: MapSettings,
     /// The sigma-point set of the `unscented` and `correlated` methods: the
     /// paper's, or the scaled set of an `[unscented]` table (docs/math.md
@@ -389,7 +392,8 @@ impl Experiment {
             )));
         }
         let pooling = file.beam_pooling.pooling().map_err(&bad)?;
-        let map = MapSettings::new(&file.map, file.risk, pooling).map_err(&bad)?;
+        let mut map = MapSettings::new(&file.map, file.risk, pooling).map_err(&bad)?;
+        map.interpolate_beams = file.interpolate_beams;
         let sigma_set = match &file.unscented {
             Some(spec) => SigmaSet::scaled(spec.alpha, spec.beta, spec.kappa)
                 .map_err(|e| bad(format!("[unscented] {e}")))?,

@@ -401,14 +401,18 @@ pub fn build_map_measured(
             }
             Some(end)
         };
-        local_grid_of(
+        let mut grid = local_grid_of(
             buffers,
             (&(origin.mean + offset), &origin.covariance),
             &scene_from_camera,
             (raster, Some(&nominal)),
             (scan.measurements.len(), end),
             max_range,
-        )
+        );
+        if view.settings.interpolate_beams {
+            grid.add_surface_samples();
+        }
+        grid
     };
     // Each scan's grid is built and searched (on the tree's geometry alone)
     // while earlier scans' changes are applied; the grids' and the plans'

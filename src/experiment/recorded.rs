@@ -187,7 +187,7 @@ pub fn map_recorded(
                 &map_from_sensor,
                 propagator.as_ref(),
             );
-            let grid = LocalGrid::new(
+            let mut grid = LocalGrid::new(
                 origin.mean,
                 map_from_sensor * grid.sensor_from_grid,
                 grid.azimuth,
@@ -196,6 +196,9 @@ pub fn map_recorded(
                 &ends,
                 &origin.covariance,
             );
+            if settings.interpolate_beams {
+                grid.add_surface_samples();
+            }
             merge(&mut tree, &grid, &merge_options);
         }
         done(k + 1);

@@ -365,17 +365,8 @@ fn any_crosses(
     bins: &BinBox,
     may_hold: &impl Fn(&Beam) -> bool,
 ) -> bool {
-    for a in bins.azimuth.0..=bins.azimuth.1 {
-        for e in bins.elevation.0..=bins.elevation.1 {
-            let (beams, inverse) = grid.bin_beams(a, e);
-            for (beam, inv) in beams.iter().zip(inverse) {
-                if !may_hold(beam) && ray_box(&grid.origin, inv, centre, half).is_some() {
-                    return true;
-                }
-            }
-        }
-    }
-    false
+    bin_box_beams(grid, bins)
+        .any(|(beam, inv)| !may_hold(beam) && ray_box(&grid.origin, inv, centre, half).is_some())
 }
 
 /// `P(C occupied | viewpoint)` for the finest cell `cell` (§5.4), from two
@@ -391,8 +382,38 @@ pub fn cell_occupancy(
     cell: &Cell,
     bins: &BinBox,
 ) -> Option<f64> {
-    let hit = surface_inside(grid, model, &cell.centre, cell.half, bins);
+    let (centre, half) = (&cell.centre, cell.half);
+    let mut hit = surface_inside(grid, model, centre, half, bins);
+    // The grid's surface samples (all of them: this is the reference)
+    // count as beams whose centre lines cross C; a cell they give a surface
+    // is one some line crosses, so the fallback for a cell between lines
+    // does not apply to it.
+    let (samples, inverse) = grid.samples();
+    let sampled = samples
+        .iter()
+        .zip(inverse)
+        .filter_map(|(s, inv)| {
+            let (a, b) = ray_box(&grid.origin, inv, centre, half)?;
+            Some(chord_surface(model, s, a, b, grid.max_range))
+        })
+        .fold(0.0, f64::max);
+    if sampled > 0.0 {
+        let crossed = bin_box_beams(grid, bins)
+            .any(|(_, inv)| ray_box(&grid.origin, inv, centre, half).is_some());
+        hit = if crossed { hit.max(sampled) } else { sampled };
+    }
     combine(model, hit, |i| corner_free(grid, model, &cell.corners[i]))
+}
+
+/// The beams of the bins of `bins`, with their inverse directions.
+fn bin_box_beams<'a>(
+    grid: &'a LocalGrid,
+    bins: &BinBox,
+) -> impl Iterator<Item = (&'a Beam, &'a Vector3)> + 'a {
+    let ((a0, a1), (e0, e1)) = (bins.azimuth, bins.elevation);
+    (a0..=a1)
+        .flat_map(move |a| (e0..=e1).map(move |e| grid.bin_beams(a, e)))
+        .flat_map(|(beams, inverse)| beams.iter().zip(inverse))
 }
 
 /// `H` for the cube `centre ± half`: the maximum, over the beams whose centre

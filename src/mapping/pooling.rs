@@ -177,26 +177,10 @@ fn pool_one(points: &[&Neighbour], direction: &Vector3, r: f64, sigma: f64) -> P
         sigma,
         normal: None,
     };
-    if points.len() < 5 {
-        return raw;
-    }
-    let Some(plane) = fit_plane(points.iter().copied()) else {
+    let Some((plane, variances)) = one_plane(points) else {
         return raw;
     };
-    // Each point's noise variance along the normal, once (at most nine).
-    let mut variances = [0.0; 9];
-    for (v, p) in variances.iter_mut().zip(points) {
-        *v = p.normal_variance(&plane.normal);
-    }
-    let variances = &variances[..points.len().min(9)];
-    let chi2: f64 = points
-        .iter()
-        .zip(variances)
-        .map(|(p, v)| plane.distance(&p.point).powi(2) / v.max((1e-3 * p.sigma).powi(2)))
-        .sum();
-    if chi2 > CHI2_99[points.len() - 4] {
-        return raw;
-    }
+    let variances = &variances[..points.len()];
     let along = plane.normal.dot(direction);
     let own_off = plane.distance(&(direction * r)) / (sigma * along.abs().max(1e-3));
     if own_off.abs() > 3.0 || along.abs() < 0.1 {
@@ -205,6 +189,39 @@ fn pool_one(points: &[&Neighbour], direction: &Vector3, r: f64, sigma: f64) -> P
     let n = points.len() as f64;
     let mean_variance = variances.iter().sum::<f64>() / n;
     plane.predict(direction, mean_variance, n).unwrap_or(raw)
+}
+
+/// The plane of 5 to 9 `points` if they are one plane plus noise (the χ²
+/// test of their residuals at 99%), with each point's noise variance along
+/// its normal; `None` otherwise.
+fn one_plane(points: &[&Neighbour]) -> Option<(Plane, [f64; 9])> {
+    if !(5..=9).contains(&points.len()) {
+        return None;
+    }
+    let plane = fit_plane(points.iter().copied())?;
+    let mut variances = [0.0; 9];
+    for (v, p) in variances.iter_mut().zip(points) {
+        *v = p.normal_variance(&plane.normal);
+    }
+    let chi2: f64 = points
+        .iter()
+        .zip(&variances)
+        .map(|(p, v)| plane.distance(&p.point).powi(2) / v.max((1e-3 * p.sigma).powi(2)))
+        .sum();
+    (chi2 <= CHI2_99[points.len() - 4]).then_some((plane, variances))
+}
+
+/// Whether 5 to 9 hits, each `(direction, range, σ)` (a unit direction from
+/// one origin and the range noise along it), are one plane plus noise: the
+/// windows' test (docs/math.md §5.5), here on a local grid's beams.
+pub(crate) fn hits_on_one_plane(hits: &[(Vector3, f64, f64)]) -> bool {
+    let mut neighbours = [Neighbour::new(&Vector3::x(), 0.0, 0.0, 0.0); 9];
+    let n = hits.len().min(9);
+    for (slot, (d, r, sigma)) in neighbours.iter_mut().zip(hits) {
+        *slot = Neighbour::new(d, *r, *sigma, 0.0);
+    }
+    let refs: [&Neighbour; 9] = std::array::from_fn(|i| &neighbours[i]);
+    hits.len() <= 9 && one_plane(&refs[..n]).is_some()
 }
 
 /// A hit of the neighbourhood: its camera-frame point, range noise, the

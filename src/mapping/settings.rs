@@ -20,6 +20,10 @@ pub struct MapSettings {
     /// Which hits' ranges are pooled with their neighbours on the surface
     /// they share (docs/math.md §5.5; every method maps the pooled points).
     pub beam_pooling: Pooling,
+    /// Whether each viewpoint's grid samples the surface between
+    /// neighbouring beams that lie on one plane (docs/math.md §5.4; OPDF
+    /// methods).
+    pub interpolate_beams: bool,
 }
 
 /// The settings as probabilities, the way OctoMap's setters and the
@@ -100,6 +104,7 @@ impl MapSettings {
                 risk,
             },
             beam_pooling,
+            interpolate_beams: false,
         })
     }
 

@@ -217,6 +217,10 @@ pub struct LocalGrid {
     surfaces: Vec<Option<Surface>>,
     /// Level k aggregates 2^k bins a side; level 0 is the bins.
     levels: Vec<Level>,
+    /// Surface samples between neighbouring beams, with their inverse
+    /// directions (empty unless [`LocalGrid::add_surface_samples`]).
+    samples: Vec<Beam>,
+    sample_inverse: Vec<Vector3>,
     /// The working arrays the grid was built with, kept for the next.
     spare: GridBuffers,
 }
@@ -415,6 +419,8 @@ impl LocalGrid {
             inverse,
             surfaces,
             levels: Vec::new(),
+            samples: Vec::new(),
+            sample_inverse: Vec::new(),
             spare,
         };
         grid.build_surfaces();
@@ -567,13 +573,25 @@ impl LocalGrid {
         });
         self.levels = vec![Level { dims, cells }];
         while dims.iter().any(|&d| d > 1) {
-            let prev = self.levels.last().expect("level 0");
-            let next_dims = dims.map(|d| d.div_ceil(2));
-            // Each tile of the next level aggregates its (up to) 2 × 2 cells.
-            let mut next = reuse.next().unwrap_or_default();
+            dims = dims.map(|d| d.div_ceil(2));
+            self.levels.push(Level {
+                dims,
+                cells: reuse.next().unwrap_or_default(),
+            });
+        }
+        self.aggregate_levels();
+    }
+
+    /// Levels 1 and up from level 0: each tile aggregates its (up to) 2 × 2
+    /// cells of the level below.
+    fn aggregate_levels(&mut self) {
+        for level in 1..self.levels.len() {
+            let (below, above) = self.levels.split_at_mut(level);
+            let (prev, next) = (&below[level - 1], &mut above[0]);
+            let dims = prev.dims;
             per_bin_into(
-                &mut next,
-                (next_dims[0], next_dims[1]),
+                &mut next.cells,
+                (next.dims[0], next.dims[1]),
                 BoxSummary::EMPTY,
                 |ta, te| {
                     let mut s = BoxSummary::EMPTY;
@@ -585,8 +603,6 @@ impl LocalGrid {
                     s
                 },
             );
-            dims = next_dims;
-            self.levels.push(Level { dims, cells: next });
         }
     }
 
@@ -632,6 +648,7 @@ impl LocalGrid {
 
 mod lookup;
 mod nominal;
+mod samples;
 mod tangent;
 
 pub use nominal::NominalBins;

@@ -50,11 +50,19 @@ fn packed(key: &Key) -> u64 {
 impl SurfaceCells {
     /// The index of `grid`'s beams on the finest cells of `geometry` (its
     /// resolution; the tree's contents are not read).
+    /// The grid's surface samples between beams, if any
+    /// ([`LocalGrid::add_surface_samples`]), count as beams here.
     pub fn new(grid: &LocalGrid, model: &CellModel, geometry: &Octree) -> Self {
         let (beams, inverse) = grid.beams();
+        let (samples, sample_inverse) = grid.samples();
         let cells = beams
             .par_chunks(CHUNK)
             .zip(inverse.par_chunks(CHUNK))
+            .chain(
+                samples
+                    .par_chunks(CHUNK)
+                    .zip(sample_inverse.par_chunks(CHUNK)),
+            )
             .fold(FxHashMap::default, |mut cells, (beams, inverse)| {
                 for (beam, inv) in beams.iter().zip(inverse) {
                     band_cells(grid, model, geometry, beam, inv, &mut cells);

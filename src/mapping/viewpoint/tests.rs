@@ -482,3 +482,85 @@ fn the_scanners_clearing_estimate_counts_the_cells_the_merge_evaluates() {
         );
     }
 }
+
+/// A floor seen from `origin` by beams whose noise alternates between 1 and
+/// 6 mm (a checkerboard), each range off by a seeded draw of it: a
+/// sample blends neighbours' bands, so its band may start before its own
+/// bin's beams' (the merge must know).
+fn noisy_floor_of_mixed_beams(origin: Vector3, h: &[f64], v: &[f64]) -> LocalGrid {
+    let rotation = looking_down();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut beams = Vec::new();
+    for (i, &vv) in v.iter().enumerate() {
+        for (j, &hh) in h.iter().enumerate() {
+            let sigma = if (i + j) % 2 == 0 { 0.001 } else { 0.006 };
+            let d = rotation * Vector3::new(vv.cos() * hh.sin(), vv.sin(), vv.cos() * hh.cos());
+            let noise: f64 = rand_distr::Distribution::sample(
+                &rand_distr::Normal::new(0.0, sigma).unwrap(),
+                &mut rng,
+            );
+            beams.push(BeamEnd::Hit {
+                point: origin + d * ((origin.z - FLOOR) / -d.z + noise),
+                covariance: Matrix3::identity() * sigma * sigma,
+            });
+        }
+    }
+    let raster = Raster {
+        horizontal: h,
+        vertical: v,
+    };
+    local_grid(
+        &origin,
+        &(Matrix3::identity() * 1e-6),
+        &rotation,
+        raster,
+        &beams,
+        2.0,
+    )
+}
+
+#[test]
+fn merge_equals_the_cell_model_with_surface_samples() {
+    // Sparse beams (2.5°) over a noisy floor, 1 cm cells: many cells lie
+    // between the beams' lines, where only surface samples cross them.
+    let (h, v) = (angles(40.0, 2.5), angles(30.0, 2.5));
+    let origin = Vector3::new(0.0013, 0.0021, 0.4);
+    let plain = noisy_floor_of_mixed_beams(origin, &h, &v);
+    let mut grid = plain.clone();
+    grid.add_surface_samples();
+    assert!(grid.samples().0.len() > 500, "{}", grid.samples().0.len());
+    let options = MergeOptions::default();
+    let (mut tree, mut without) = (Octree::new(0.01), Octree::new(0.01));
+    let stats = merge(&mut tree, &grid, &options);
+    merge(&mut without, &plain, &options);
+    assert!(stats.coarse_updates > 0, "{stats:?}");
+    let (mut informed, mut changed) = (0, 0);
+    for i in -16..16 {
+        for j in -12..12 {
+            for k in -3..12 {
+                let p = Point3::new(
+                    i as f64 * 0.01 + 0.005,
+                    j as f64 * 0.01 + 0.005,
+                    k as f64 * 0.01 + 0.005,
+                );
+                let cell = Cell::of(&tree, &tree.key(&p).unwrap());
+                let c = cell.centre;
+                let brute = grid
+                    .ball_bins(&c, 0.005 * 3f64.sqrt())
+                    .and_then(|bins| cell_occupancy(&grid, &options.model, &cell, &bins))
+                    .map(|p| logit(p) as f32)
+                    .filter(|l| l.abs() >= 1e-3)
+                    .map(|l| options.clamp.apply(l));
+                let merged = tree.value_at(&Point3::from(c));
+                informed += usize::from(brute.is_some());
+                changed += usize::from(merged != without.value_at(&Point3::from(c)));
+                assert_eq!(
+                    merged.map(f32::to_bits),
+                    brute.map(f32::to_bits),
+                    "{c:?}: merged {merged:?}, brute {brute:?}"
+                );
+            }
+        }
+    }
+    assert!(informed > 5000 && changed > 50, "{informed} {changed}");
+}
