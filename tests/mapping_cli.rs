@@ -8,22 +8,30 @@ use sigmap::mapping::octomap_io::read_octree;
 use sigmap::mapping::Clamp;
 use std::path::{Path, PathBuf};
 
+/// `sigmap map` of the quickstart with `method` at 2 cm into `out`, plus
+/// `extra` arguments.
+fn map_quickstart_at_2cm(method: &str, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "map",
+        "experiments/quickstart.toml",
+        "--method",
+        method,
+        "--resolution",
+        "0.02",
+        "-q",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    sigmap(&args)
+}
+
 #[test]
 fn maps_are_written_and_carry_free_space_and_surfaces() {
     let dir = tempfile::tempdir().unwrap();
     for method in ["unscented", "ray_update", "blind", "jacobian"] {
         let out = dir.path().join(format!("{method}.ot"));
-        let run = sigmap(&[
-            "map",
-            "experiments/quickstart.toml",
-            "--method",
-            method,
-            "--resolution",
-            "0.02",
-            "-q",
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+        let run = map_quickstart_at_2cm(method, &out, &[]);
         assert!(
             run.status.success(),
             "{method}: {}",
@@ -52,21 +60,12 @@ fn interpolate_beams_adds_surface_to_opdf_maps_only() {
     let dir = tempfile::tempdir().unwrap();
     let build = |method: &str, samples: bool| {
         let out = dir.path().join(format!("{method}_{samples}.ot"));
-        let mut args = vec![
-            "map",
-            "experiments/quickstart.toml",
-            "--method",
-            method,
-            "--resolution",
-            "0.02",
-            "-q",
-            "--out",
-            out.to_str().unwrap(),
-        ];
-        if samples {
-            args.push("--interpolate-beams");
-        }
-        let run = sigmap(&args);
+        let extra: &[&str] = if samples {
+            &["--interpolate-beams"]
+        } else {
+            &[]
+        };
+        let run = map_quickstart_at_2cm(method, &out, extra);
         assert!(
             run.status.success(),
             "{}",

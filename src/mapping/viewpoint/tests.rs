@@ -39,15 +39,28 @@ fn plane_grid(
     floor: f64,
     noise: Option<u64>,
 ) -> LocalGrid {
+    plane_grid_with(origin, h, v, floor, noise, |_, _| sigma)
+}
+
+/// [`plane_grid`] with beam `(row i, column j)`'s noise `sigma(i, j)`.
+fn plane_grid_with(
+    origin: Vector3,
+    h: &[f64],
+    v: &[f64],
+    floor: f64,
+    noise: Option<u64>,
+    sigma: impl Fn(usize, usize) -> f64,
+) -> LocalGrid {
     let rotation = looking_down();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(noise.unwrap_or(0));
-    let normal = rand_distr::Normal::new(0.0, sigma).unwrap();
     let mut beams = Vec::new();
-    for &vv in v {
-        for &hh in h {
+    for (i, &vv) in v.iter().enumerate() {
+        for (j, &hh) in h.iter().enumerate() {
+            let sigma = sigma(i, j);
             let d = rotation * Vector3::new(vv.cos() * hh.sin(), vv.sin(), vv.cos() * hh.cos());
             let mut t = (origin.z - floor) / -d.z;
             if noise.is_some() {
+                let normal = rand_distr::Normal::new(0.0, sigma).unwrap();
                 t += rand_distr::Distribution::sample(&normal, &mut rng);
             }
             beams.push(BeamEnd::Hit {
@@ -68,6 +81,62 @@ fn plane_grid(
         &beams,
         2.0,
     )
+}
+
+/// Asserts that `tree`, `grid` merged with `options`, holds at the finest
+/// cell around each of `points` (cells of edge `2 half`) the cell model
+/// evaluated there, bit for bit; the number of cells the model informs.
+fn assert_merged_as_the_model(
+    tree: &Octree,
+    grid: &LocalGrid,
+    options: &MergeOptions,
+    points: impl Iterator<Item = Point3>,
+) -> usize {
+    let half = tree.node_size(crate::mapping::octree::DEPTH) * 0.5;
+    let mut informed = 0;
+    for p in points {
+        let cell = Cell::of(tree, &tree.key(&p).unwrap());
+        let c = cell.centre;
+        let brute = grid
+            .ball_bins(&c, half * 3f64.sqrt())
+            .and_then(|bins| cell_occupancy(grid, &options.model, &cell, &bins))
+            .map(|p| logit(p) as f32)
+            .filter(|l| l.abs() >= 1e-3)
+            .map(|l| options.clamp.apply(l));
+        let merged = tree.value_at(&Point3::from(c));
+        informed += usize::from(brute.is_some());
+        // Bit for bit: the merge's shared corner values and coarse
+        // updates are the model evaluated cell by cell.
+        assert_eq!(
+            merged.map(f32::to_bits),
+            brute.map(f32::to_bits),
+            "{c:?}: merged {merged:?}, brute {brute:?}"
+        );
+    }
+    informed
+}
+
+/// The centres of the cells `(i, j, k)` of edge `edge` in the given ranges.
+fn cell_centres(
+    edge: f64,
+    (x, y, z): (
+        std::ops::Range<i32>,
+        std::ops::Range<i32>,
+        std::ops::Range<i32>,
+    ),
+) -> impl Iterator<Item = Point3> {
+    x.flat_map(move |i| {
+        let (y, z) = (y.clone(), z.clone());
+        y.flat_map(move |j| {
+            z.clone().map(move |k| {
+                Point3::new(
+                    (i as f64 + 0.5) * edge,
+                    (j as f64 + 0.5) * edge,
+                    (k as f64 + 0.5) * edge,
+                )
+            })
+        })
+    })
 }
 
 #[test]
@@ -109,36 +178,12 @@ fn merge_equals_the_cell_model_evaluated_at_every_finest_cell() {
     let mut tree = Octree::new(0.02);
     let stats = merge(&mut tree, &grid, &options);
     assert!(stats.coarse_updates > 0, "{stats:?}");
-    let half = 0.01;
-    let mut informed = 0;
-    for i in -12..12 {
-        for j in -9..9 {
-            for k in -3..24 {
-                let p = Point3::new(
-                    i as f64 * 0.02 + 0.01,
-                    j as f64 * 0.02 + 0.01,
-                    k as f64 * 0.02 + 0.01,
-                );
-                let cell = Cell::of(&tree, &tree.key(&p).unwrap());
-                let c = cell.centre;
-                let brute = grid
-                    .ball_bins(&c, half * 3f64.sqrt())
-                    .and_then(|bins| cell_occupancy(&grid, &options.model, &cell, &bins))
-                    .map(|p| logit(p) as f32)
-                    .filter(|l| l.abs() >= 1e-3)
-                    .map(|l| options.clamp.apply(l));
-                let merged = tree.value_at(&Point3::from(c));
-                informed += usize::from(brute.is_some());
-                // Bit for bit: the merge's shared corner values and coarse
-                // updates are the model evaluated cell by cell.
-                assert_eq!(
-                    merged.map(f32::to_bits),
-                    brute.map(f32::to_bits),
-                    "{c:?}: merged {merged:?}, brute {brute:?}"
-                );
-            }
-        }
-    }
+    let informed = assert_merged_as_the_model(
+        &tree,
+        &grid,
+        &options,
+        cell_centres(0.02, (-12..12, -9..9, -3..24)),
+    );
     assert!(informed > 1000, "{informed}");
 }
 
@@ -483,49 +528,23 @@ fn the_scanners_clearing_estimate_counts_the_cells_the_merge_evaluates() {
     }
 }
 
-/// A floor seen from `origin` by beams whose noise alternates between 1 and
-/// 6 mm (a checkerboard), each range off by a seeded draw of it: a
-/// sample blends neighbours' bands, so its band may start before its own
-/// bin's beams' (the merge must know).
-fn noisy_floor_of_mixed_beams(origin: Vector3, h: &[f64], v: &[f64]) -> LocalGrid {
-    let rotation = looking_down();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-    let mut beams = Vec::new();
-    for (i, &vv) in v.iter().enumerate() {
-        for (j, &hh) in h.iter().enumerate() {
-            let sigma = if (i + j) % 2 == 0 { 0.001 } else { 0.006 };
-            let d = rotation * Vector3::new(vv.cos() * hh.sin(), vv.sin(), vv.cos() * hh.cos());
-            let noise: f64 = rand_distr::Distribution::sample(
-                &rand_distr::Normal::new(0.0, sigma).unwrap(),
-                &mut rng,
-            );
-            beams.push(BeamEnd::Hit {
-                point: origin + d * ((origin.z - FLOOR) / -d.z + noise),
-                covariance: Matrix3::identity() * sigma * sigma,
-            });
-        }
-    }
-    let raster = Raster {
-        horizontal: h,
-        vertical: v,
-    };
-    local_grid(
-        &origin,
-        &(Matrix3::identity() * 1e-6),
-        &rotation,
-        raster,
-        &beams,
-        2.0,
-    )
-}
-
 #[test]
 fn merge_equals_the_cell_model_with_surface_samples() {
     // Sparse beams (2.5°) over a noisy floor, 1 cm cells: many cells lie
-    // between the beams' lines, where only surface samples cross them.
+    // between the beams' lines, where only surface samples cross them. The
+    // beams' noise alternates between 1 and 6 mm (a checkerboard): a sample
+    // blends its neighbours' bands, so its band may start before its own
+    // bin's beams' (the merge must know).
     let (h, v) = (angles(40.0, 2.5), angles(30.0, 2.5));
     let origin = Vector3::new(0.0013, 0.0021, 0.4);
-    let plain = noisy_floor_of_mixed_beams(origin, &h, &v);
+    let mixed = |i: usize, j: usize| {
+        if (i + j).is_multiple_of(2) {
+            0.001
+        } else {
+            0.006
+        }
+    };
+    let plain = plane_grid_with(origin, &h, &v, FLOOR, Some(7), mixed);
     let mut grid = plain.clone();
     grid.add_surface_samples();
     assert!(grid.samples().0.len() > 500, "{}", grid.samples().0.len());
@@ -534,33 +553,10 @@ fn merge_equals_the_cell_model_with_surface_samples() {
     let stats = merge(&mut tree, &grid, &options);
     merge(&mut without, &plain, &options);
     assert!(stats.coarse_updates > 0, "{stats:?}");
-    let (mut informed, mut changed) = (0, 0);
-    for i in -16..16 {
-        for j in -12..12 {
-            for k in -3..12 {
-                let p = Point3::new(
-                    i as f64 * 0.01 + 0.005,
-                    j as f64 * 0.01 + 0.005,
-                    k as f64 * 0.01 + 0.005,
-                );
-                let cell = Cell::of(&tree, &tree.key(&p).unwrap());
-                let c = cell.centre;
-                let brute = grid
-                    .ball_bins(&c, 0.005 * 3f64.sqrt())
-                    .and_then(|bins| cell_occupancy(&grid, &options.model, &cell, &bins))
-                    .map(|p| logit(p) as f32)
-                    .filter(|l| l.abs() >= 1e-3)
-                    .map(|l| options.clamp.apply(l));
-                let merged = tree.value_at(&Point3::from(c));
-                informed += usize::from(brute.is_some());
-                changed += usize::from(merged != without.value_at(&Point3::from(c)));
-                assert_eq!(
-                    merged.map(f32::to_bits),
-                    brute.map(f32::to_bits),
-                    "{c:?}: merged {merged:?}, brute {brute:?}"
-                );
-            }
-        }
-    }
+    let cells = || cell_centres(0.01, (-16..16, -12..12, -3..12));
+    let informed = assert_merged_as_the_model(&tree, &grid, &options, cells());
+    let changed = cells()
+        .filter(|p| tree.value_at(p) != without.value_at(p))
+        .count();
     assert!(informed > 5000 && changed > 50, "{informed} {changed}");
 }
