@@ -35,7 +35,7 @@ struct ExperimentFile {
     #[serde(default)]
     beam_pooling: PoolingSpec,
     #[serde(default)]
-    interpolate_beams: bool,
+    interpolate_beams: SwitchSpec,
     /// `[map]`: each setting may be swept as `experiment.map.<name>` once set.
     #[serde(default)]
     map: MapProbabilities,
@@ -80,6 +80,37 @@ impl PoolingSpec {
                      or true (every beam's window and the faces), or \"off\" or false"
                 )
             }),
+        }
+    }
+}
+
+/// A switch as written: `true` / `false`, or `"on"` / `"off"` (a string, so
+/// that a sweep can take both).
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum SwitchSpec {
+    Switch(bool),
+    Named(String),
+}
+
+impl Default for SwitchSpec {
+    fn default() -> Self {
+        Self::Switch(false)
+    }
+}
+
+impl SwitchSpec {
+    /// Whether it is on, or what to write instead (`name`: the setting).
+    fn on(&self, name: &str) -> std::result::Result<bool, String> {
+        match self {
+            SwitchSpec::Switch(on) => Ok(*on),
+            SwitchSpec::Named(word) => match word.as_str() {
+                "on" => Ok(true),
+                "off" => Ok(false),
+                _ => Err(format!(
+                    "{name} = \"{word}\": use true or \"on\", false or \"off\""
+                )),
+            },
         }
     }
 }
@@ -393,7 +424,10 @@ impl Experiment {
         }
         let pooling = file.beam_pooling.pooling().map_err(&bad)?;
         let mut map = MapSettings::new(&file.map, file.risk, pooling).map_err(&bad)?;
-        map.interpolate_beams = file.interpolate_beams;
+        map.interpolate_beams = file
+            .interpolate_beams
+            .on("interpolate_beams")
+            .map_err(&bad)?;
         let sigma_set = match &file.unscented {
             Some(spec) => SigmaSet::scaled(spec.alpha, spec.beta, spec.kappa)
                 .map_err(|e| bad(format!("[unscented] {e}")))?,
@@ -650,6 +684,28 @@ mod tests {
             mean.iter().all(|c| (0.3 * res..0.7 * res).contains(c)),
             "{mean:?}"
         );
+    }
+
+    #[test]
+    fn interpolate_beams_reads_a_switch_or_on_and_off() {
+        #[derive(Deserialize)]
+        struct File {
+            #[serde(default)]
+            interpolate_beams: SwitchSpec,
+        }
+        let read = |text: &str| {
+            toml::from_str::<File>(text)
+                .unwrap()
+                .interpolate_beams
+                .on("interpolate_beams")
+        };
+        assert_eq!(read(""), Ok(false));
+        assert_eq!(read("interpolate_beams = true"), Ok(true));
+        assert_eq!(read("interpolate_beams = \"on\""), Ok(true));
+        assert_eq!(read("interpolate_beams = \"off\""), Ok(false));
+        assert!(read("interpolate_beams = \"yes\"")
+            .unwrap_err()
+            .starts_with("interpolate_beams = \"yes\": use true"));
     }
 
     #[test]
