@@ -80,6 +80,29 @@ fn absurd_sizes_are_refused_before_any_work() {
         &experiment(d, "small_step", step, "horizontal_step_deg = 1e-9"),
         "beams per viewpoint",
     );
+    // Surface samples between beams multiply a grid's beams by up to nine:
+    // a raster that fits without them (810 081 beams a viewpoint) is refused
+    // with them, by the experiment file and by `map --interpolate-beams`.
+    let fine = experiment(d, "fine_raster", step, "horizontal_step_deg = 0.005");
+    let sampled = edited(
+        &fine,
+        &d.join("fine_sampled.toml"),
+        &[("seed = 1", "seed = 1\ninterpolate_beams = true")],
+    );
+    run(&sampled, "interpolate_beams: 810081 beams per viewpoint");
+    let out = d.join("fine.bt");
+    refused(
+        &[
+            "map",
+            fine.to_str().unwrap(),
+            "--interpolate-beams",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "fine_raster.toml",
+        "--interpolate-beams: interpolate_beams: 810081 beams",
+    );
+    assert!(!out.exists());
     // A range the uncertainty-aware maps cannot clear: refused by `run` and
     // by `map` before the simulation (it used to build for ever).
     let far = experiment(d, "far", "max_range = 2.0", "max_range = 1e300");

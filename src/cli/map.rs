@@ -28,11 +28,16 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
                 .into(),
         ));
     }
-    let mut experiment = Experiment::load(experiment)?;
+    let path = experiment;
+    let mut experiment = Experiment::load(path)?;
     if let Some(pooling) = args.beam_pooling {
         experiment.map.beam_pooling = pooling;
     }
-    experiment.map.interpolate_beams |= args.interpolate_beams;
+    if args.interpolate_beams && !experiment.map.interpolate_beams {
+        crate::experiment::check_sample_budget(experiment.scanner.directions.len() as f64)
+            .map_err(|e| Error::input(path, format!("--interpolate-beams: {e}")))?;
+        experiment.map.interpolate_beams = true;
+    }
     let resolution = resolution_arg(args.resolution.unwrap_or(experiment.resolution))?;
     let seed = args.run.seed.unwrap_or(experiment.seed);
     let out = args.out.clone().unwrap_or_else(|| {

@@ -471,6 +471,9 @@ impl Experiment {
                 scanner.directions.len()
             )));
         }
+        if map.interpolate_beams {
+            check_sample_budget(scanner.directions.len() as f64).map_err(&bad)?;
+        }
         crate::eval::ground_truth::check_resolution(&scene, file.resolution)?;
         if methods.iter().any(|m| m.builds_grids()) {
             scanner.check_clearing(file.resolution).map_err(bad)?;
@@ -645,6 +648,24 @@ pub const MAX_VIEWPOINTS: usize = 10_000;
 pub const MAX_BEAMS_PER_RUN: f64 = 16_000_000.0;
 
 /// The first value that appears twice.
+/// Refuses surface samples between beams (`interpolate_beams`) for a
+/// viewpoint of `beams` beams when beams and samples together would pass
+/// the per-viewpoint limit, before any grid is built.
+pub(crate) fn check_sample_budget(beams: f64) -> std::result::Result<(), String> {
+    use crate::mapping::spherical::SAMPLES_PER_BEAM;
+    use crate::sim::sensor::MAX_BEAMS_PER_VIEWPOINT;
+    let limit = MAX_BEAMS_PER_VIEWPOINT / (1 + SAMPLES_PER_BEAM) as f64;
+    if beams > limit {
+        return Err(format!(
+            "interpolate_beams: {beams:.0} beams per viewpoint would make up to {:.0} surface \
+             samples; with samples sigmap handles at most {limit:.0} beams per viewpoint (use \
+             larger sensor steps, or leave interpolate_beams off)",
+            beams * SAMPLES_PER_BEAM as f64
+        ));
+    }
+    Ok(())
+}
+
 fn first_repeat<T: PartialEq>(values: &[T]) -> Option<&T> {
     values
         .iter()

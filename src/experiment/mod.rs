@@ -39,6 +39,7 @@ pub mod runner;
 mod scan_files;
 mod simulate;
 
+pub(crate) use config::check_sample_budget;
 pub use config::{Experiment, SweepAxis, SweepValue, Viewpoint};
 pub use scan_files::{chain_file, default_scan_dir, read_ply, write_ply, write_rays, write_scans};
 pub use simulate::{simulate, RunTruth, SimulatedRun};

@@ -172,6 +172,12 @@ pub fn map_recorded(
         let origin = propagator.origin();
         let map_from_sensor = chain.nominal().rotation.to_rotation_matrix().into_inner();
         let grids = node_grids(node, options.angular_step)?;
+        if settings.interpolate_beams {
+            for grid in &grids {
+                let bins = grid.azimuth.count as f64 * grid.elevation.count as f64;
+                crate::experiment::check_sample_budget(bins).map_err(Error::Usage)?;
+            }
+        }
         let points = node_points(
             node,
             &grids,

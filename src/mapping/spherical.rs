@@ -652,5 +652,6 @@ mod samples;
 mod tangent;
 
 pub use nominal::NominalBins;
+pub use samples::SAMPLES_PER_BEAM;
 #[cfg(test)]
 mod tests;

@@ -22,6 +22,10 @@ use rayon::prelude::*;
 /// three: 0.0420, two: 0.0444, none: 0.0559; docs/math.md §5.4).
 pub const STEPS: usize = 3;
 
+/// The most samples a viewpoint's grid adds per beam: the lattice of
+/// [`STEPS`] per spacing less the beams themselves.
+pub const SAMPLES_PER_BEAM: usize = STEPS * STEPS - 1;
+
 impl LocalGrid {
     /// The bin's one beam if it holds exactly one, with a return.
     fn single_hit(&self, a: usize, e: usize) -> Option<&Beam> {
