@@ -647,7 +647,6 @@ pub const MAX_VIEWPOINTS: usize = 10_000;
 /// map stay within a few GB.
 pub const MAX_BEAMS_PER_RUN: f64 = 16_000_000.0;
 
-/// The first value that appears twice.
 /// Refuses surface samples between beams (`interpolate_beams`) for a
 /// viewpoint of `beams` beams when beams and samples together would pass
 /// the per-viewpoint limit, before any grid is built.
@@ -666,6 +665,7 @@ pub(crate) fn check_sample_budget(beams: f64) -> std::result::Result<(), String>
     Ok(())
 }
 
+/// The first value that appears twice.
 fn first_repeat<T: PartialEq>(values: &[T]) -> Option<&T> {
     values
         .iter()

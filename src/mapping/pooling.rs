@@ -215,13 +215,15 @@ fn one_plane(points: &[&Neighbour]) -> Option<(Plane, [f64; 9])> {
 /// one origin and the range noise along it), are one plane plus noise: the
 /// windows' test (docs/math.md §5.5), here on a local grid's beams.
 pub(crate) fn hits_on_one_plane(hits: &[(Vector3, f64, f64)]) -> bool {
+    if hits.len() > 9 {
+        return false;
+    }
     let mut neighbours = [Neighbour::new(&Vector3::x(), 0.0, 0.0, 0.0); 9];
-    let n = hits.len().min(9);
     for (slot, (d, r, sigma)) in neighbours.iter_mut().zip(hits) {
         *slot = Neighbour::new(d, *r, *sigma, 0.0);
     }
     let refs: [&Neighbour; 9] = std::array::from_fn(|i| &neighbours[i]);
-    hits.len() <= 9 && one_plane(&refs[..n]).is_some()
+    one_plane(&refs[..hits.len()]).is_some()
 }
 
 /// A hit of the neighbourhood: its camera-frame point, range noise, the
