@@ -12,7 +12,7 @@
 //! `bash benches/octomap/compare.sh`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use sigmap::experiment::model::{build_map, measured_points, MapperView, Method};
+use sigmap::experiment::model::{build_map, measured_ranges, MapperView, Method};
 use sigmap::experiment::{simulate, Experiment};
 use sigmap::geometry::Vector3;
 use sigmap::mapping::pooling::Pooling;
@@ -124,7 +124,7 @@ fn bench(c: &mut Criterion) {
             pool.install(|| {
                 mean_seconds(|| {
                     for scan in &run.scans {
-                        black_box(measured_points(&view, scan));
+                        black_box(measured_ranges(&view, scan));
                     }
                 })
             })

@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Vector3};
 use crate::mapping::merge::MergePlan;
 use crate::mapping::pipeline::prepare_and_insert;
-use crate::mapping::pooling::{pool_ranges, Pooling};
+use crate::mapping::pooling::{pool_ranges, Pooled, PooledRange, Pooling};
 use crate::mapping::ray_update::RayUpdater;
 use crate::mapping::shared_motion::expect_over_shared_motion;
 use crate::mapping::spherical::{BeamEnd, GridBuffers};
@@ -24,7 +24,6 @@ use crate::uncertainty::{
     BlindPropagator, JacobianPropagator, Propagator, SigmaSet, UncertainChain, UncertainPoint,
     UnscentedPropagator,
 };
-use rayon::prelude::*;
 use std::fmt;
 use std::str::FromStr;
 use std::sync::Mutex;
@@ -205,67 +204,95 @@ fn beam_end(
     }
 }
 
-/// The measured point of each beam in the camera frame with its covariance
-/// (`None` without a hit): the raw range, or with `beam_pooling` the range
-/// pooled on the viewpoint's local plane or face (docs/math.md §5.5). The
-/// same for every method: compute it once per scan.
-pub fn measured_points(view: &MapperView, scan: &Scan) -> Vec<Option<UncertainPoint>> {
-    let directions = &view.scanner.directions;
-    if view.settings.beam_pooling == Pooling::Off {
-        return scan
-            .measurements
-            .par_iter()
-            .zip(directions.par_iter())
-            .map(|(m, d)| raw_point(view.range, m, d))
-            .collect();
-    }
+/// Beam `k` of `scan` as an OPDF map draws it (scene frame): its
+/// [`surface_point`] from `points` (the scan's [`measured_ranges`]; `None`:
+/// its raw range) propagated through the chain, or its direction if it
+/// returned nothing.
+fn map_beam_end(
+    view: &MapperView,
+    scan: &Scan,
+    points: Option<&[Pooled]>,
+    k: usize,
+    propagator: &dyn Propagator,
+    scene_from_camera: &Matrix3,
+) -> Option<BeamEnd> {
+    let (m, d) = (&scan.measurements[k], &view.scanner.directions[k]);
+    let point = points.map_or_else(
+        || raw_point(view.range, m, d),
+        |points| points[k].as_ref().map(|p| surface_point(view.range, d, p)),
+    );
+    beam_end(m, d, point.as_ref(), propagator, scene_from_camera)
+}
+
+/// What a scan measured along each beam (`None`: no hit): the raw range
+/// with the range model's σ, or with `beam_pooling` the range pooled on the
+/// viewpoint's local plane or face (docs/math.md §5.5). The same for every
+/// method: compute it once per scan. [`surface_point`] is what a map draws
+/// from it, [`hit_point`] what the NEES checks.
+pub fn measured_ranges(view: &MapperView, scan: &Scan) -> Vec<Pooled> {
     let hit = |m: &Measurement| (m.status == BeamStatus::Hit).then_some(m.range);
     let ranges: Vec<Option<f64>> = scan.measurements.iter().map(hit).collect();
-    pooled_points(
+    pool_ranges(
         view.settings.beam_pooling,
         view.scanner.columns,
-        directions,
+        &view.scanner.directions,
         &ranges,
-        view.range,
+        |r| view.range.sigma(r),
+        view.range.angular_sigma,
     )
 }
 
-/// The measured points of one raster of beams, pooled as `pooling` asks
-/// (docs/math.md §5.5): `ranges[k]` is beam k's measured range (`None`: no
-/// hit) along the unit camera-frame `directions[k]`, row by row with
-/// `columns` per row; each hit's camera-frame point with its covariance.
-pub fn pooled_points(
+/// Where the surface crosses the nominal line of the beam along the unit
+/// camera-frame `d` that measured `p`, with the covariance a map draws its
+/// chord and free space from (docs/math.md §5.4, §5.5): σ along the beam is
+/// the raw range's or the fitted plane's prediction σ, without the slide of
+/// a turned beam along a slanted plane, which is where the beam hit and not
+/// where the surface meets the line the map draws.
+pub fn surface_point(range: &RangeModel, d: &Vector3, p: &PooledRange) -> UncertainPoint {
+    camera_point(range, d, p.range, p.sigma)
+}
+
+/// Where the beam along `d` that measured `p` hit the surface, with its
+/// covariance: a pooled range's holds the slide (docs/math.md §5.5). What
+/// the run's NEES checks against the true hit.
+pub fn hit_point(range: &RangeModel, d: &Vector3, p: &PooledRange) -> UncertainPoint {
+    match p.covariance(d, range.angular_sigma) {
+        Some(covariance) => UncertainPoint {
+            mean: d * p.range,
+            covariance,
+        },
+        None => camera_point(range, d, p.range, p.sigma),
+    }
+}
+
+/// The measured points of one raster of beams as a map draws them,
+/// pooled as `pooling` asks (docs/math.md §5.5): `ranges[k]` is beam k's
+/// measured range (`None`: no hit) along the unit camera-frame
+/// `directions[k]`, row by row with `columns` per row; each hit's
+/// [`surface_point`].
+pub fn pooled_surface_points(
     pooling: Pooling,
     columns: usize,
     directions: &[Vector3],
     ranges: &[Option<f64>],
     range: &RangeModel,
 ) -> Vec<Option<UncertainPoint>> {
-    let angular_sigma = range.angular_sigma;
     let pooled = pool_ranges(
         pooling,
         columns,
         directions,
         ranges,
         |r| range.sigma(r),
-        angular_sigma,
+        range.angular_sigma,
     );
     pooled
         .iter()
         .zip(directions)
-        .map(|(p, d)| {
-            p.map(|p| match p.covariance(d, angular_sigma) {
-                Some(covariance) => UncertainPoint {
-                    mean: d * p.range,
-                    covariance,
-                },
-                None => camera_point(range, d, p.range, p.sigma),
-            })
-        })
+        .map(|(p, d)| p.as_ref().map(|p| surface_point(range, d, p)))
         .collect()
 }
 
-/// A hit's measured point from its raw range (see [`measured_points`]).
+/// A hit's measured point from its raw range (see [`measured_ranges`]).
 fn raw_point(range: &RangeModel, m: &Measurement, d: &Vector3) -> Option<UncertainPoint> {
     (m.status == BeamStatus::Hit).then(|| camera_point(range, d, m.range, range.sigma(m.range)))
 }
@@ -292,7 +319,7 @@ pub fn build_map(
     build_map_measured(view, scans, None, method, resolution, offset)
 }
 
-/// [`build_map`] from the scans' [`measured_points`] (one per scan; the ray
+/// [`build_map`] from the scans' [`measured_ranges`] (one per scan; the ray
 /// update's rays end at them only with `beam_pooling`, and otherwise at the
 /// raw hits, as OctoMap's), when they are computed once for all methods of
 /// a run; `None`: each beam's is computed as its grid is built (with
@@ -300,7 +327,7 @@ pub fn build_map(
 pub fn build_map_measured(
     view: &MapperView,
     scans: &[Scan],
-    measured: Option<&[Vec<Option<UncertainPoint>>]>,
+    measured: Option<&[Vec<Pooled>]>,
     method: Method,
     resolution: f64,
     offset: &Vector3,
@@ -382,17 +409,15 @@ pub fn build_map_measured(
         // Each beam's end is computed as it is binned: without pooling its
         // measured point too, so neither is ever held for the whole scan.
         let pooled = (measured.is_none() && view.settings.beam_pooling != Pooling::Off)
-            .then(|| measured_points(view, scan));
+            .then(|| measured_ranges(view, scan));
         let points = measured.map(|m| &m[i]).or(pooled.as_ref());
         let scene_from_camera = chain.nominal().rotation.to_rotation_matrix().into_inner();
-        let directions = &view.scanner.directions;
         let end = |k: usize| {
-            let (m, d) = (&scan.measurements[k], &directions[k]);
-            let point = points.map_or_else(|| raw_point(view.range, m, d), |points| points[k]);
-            let mut end = beam_end(
-                m,
-                d,
-                point.as_ref(),
+            let mut end = map_beam_end(
+                view,
+                scan,
+                points.map(|p| &p[..]),
+                k,
                 propagator.as_ref(),
                 &scene_from_camera,
             )?;
@@ -520,19 +545,19 @@ pub fn ray_inputs(view: &MapperView, scan: &Scan) -> (Point3, Vec<Point3>, Vec<V
 }
 
 /// Where a scan's rays end for the ray update: with beam pooling, at its
-/// pooled [`measured_points`]; `None` without pooling (the raw hits, as
+/// pooled [`measured_ranges`]; `None` without pooling (the raw hits, as
 /// OctoMap's).
-pub fn pooled_ray_ends(view: &MapperView, scan: &Scan) -> Option<Vec<Option<UncertainPoint>>> {
-    (view.settings.beam_pooling != Pooling::Off).then(|| measured_points(view, scan))
+pub fn pooled_ray_ends(view: &MapperView, scan: &Scan) -> Option<Vec<Pooled>> {
+    (view.settings.beam_pooling != Pooling::Off).then(|| measured_ranges(view, scan))
 }
 
 /// [`ray_inputs`] into buffers of the caller's (reused from scan to scan:
 /// fresh ones cost a page fault every 4 KiB); with `points` (the scan's
-/// [`measured_points`], pooled), each hit ends at its measured point.
+/// [`measured_ranges`], pooled), each hit ends at its measured range.
 pub fn ray_inputs_into(
     view: &MapperView,
     scan: &Scan,
-    points: Option<&[Option<UncertainPoint>]>,
+    points: Option<&[Pooled]>,
     hits: &mut Vec<Point3>,
     misses: &mut Vec<Vector3>,
 ) -> Point3 {
@@ -549,7 +574,7 @@ pub fn ray_inputs_into(
             BeamStatus::Hit => {
                 let local = points
                     .and_then(|points| points[k].as_ref())
-                    .map_or_else(|| d * m.range, |p| p.mean);
+                    .map_or_else(|| d * m.range, |p| d * p.range);
                 hits.push(pose * Point3::from(local));
             }
             BeamStatus::NoReturn => misses.push(pose.rotation * d),
@@ -706,11 +731,12 @@ mod tests {
         let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
         let scan = &run.scans[0];
         let along = |e: &Experiment| -> Vec<(f64, f64)> {
-            measured_points(&MapperView::of(e), scan)
+            let view = MapperView::of(e);
+            measured_ranges(&view, scan)
                 .iter()
                 .zip(&e.scanner.directions)
                 .filter_map(|(p, d)| {
-                    let p = p.as_ref()?;
+                    let p = surface_point(view.range, d, p.as_ref()?);
                     Some((
                         p.mean.norm(),
                         (d.transpose() * p.covariance * d)[(0, 0)].sqrt(),
@@ -730,6 +756,53 @@ mod tests {
             "{narrowed} of {} hits pooled",
             pooled.len()
         );
+    }
+
+    #[test]
+    fn maps_draw_pooled_beams_without_the_slide_and_the_nees_keeps_it() {
+        // With the chain exact (blind), a beam's σ along its scene-frame
+        // line is the σ of the camera-frame point the map drew: the pooled
+        // range's own (the plane's prediction), not the hit's, which adds
+        // the slide r σ_a tan θ on a slanted plane.
+        let mut experiment = quickstart();
+        experiment.map.beam_pooling = Pooling::Windows;
+        let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+        let view = MapperView::of(&experiment);
+        let scan = &run.scans[0];
+        let measured = measured_ranges(&view, scan);
+        let chain = scan_chain(scan);
+        let propagator = propagator(Method::Blind, &chain, view.sigma_set).unwrap();
+        let origin = propagator.origin().mean;
+        let scene_from_camera = chain.nominal().rotation.to_rotation_matrix().into_inner();
+        let (mut pooled, mut slanted) = (0, 0);
+        for (k, (p, d)) in measured.iter().zip(&view.scanner.directions).enumerate() {
+            let Some(p) = p else { continue };
+            let end = map_beam_end(
+                &view,
+                scan,
+                Some(&measured),
+                k,
+                propagator.as_ref(),
+                &scene_from_camera,
+            );
+            let Some(BeamEnd::Hit { point, covariance }) = end else {
+                panic!("beam {k} measured a range and is not a hit");
+            };
+            let v = (point - origin).normalize();
+            let drawn = (v.transpose() * covariance * v)[(0, 0)].sqrt();
+            assert!(
+                (drawn - p.sigma).abs() <= 1e-9 * p.sigma,
+                "beam {k}: σ {drawn} drawn, {} measured",
+                p.sigma
+            );
+            let hit = hit_point(view.range, d, p);
+            let hit_sigma = (d.transpose() * hit.covariance * d)[(0, 0)].sqrt();
+            assert!(hit_sigma >= p.sigma * (1.0 - 1e-12));
+            pooled += usize::from(p.normal.is_some());
+            slanted += usize::from(hit_sigma > 1.1 * p.sigma);
+        }
+        assert!(pooled > 1000, "{pooled} pooled beams");
+        assert!(slanted * 10 > pooled, "{slanted} of {pooled} with a slide");
     }
 
     #[test]
@@ -754,7 +827,7 @@ mod tests {
         // OctoMap's update, scan by scan, of rays ending at the pooled points.
         let mut expected = Octree::new(resolution);
         for scan in &run.scans {
-            let points = measured_points(&view, scan);
+            let points = measured_ranges(&view, scan);
             let pose = scan.chain.scene_from_camera();
             let (mut hits, mut misses) = (Vec::new(), Vec::new());
             for ((m, d), p) in scan
@@ -764,7 +837,7 @@ mod tests {
                 .zip(&points)
             {
                 match m.status {
-                    BeamStatus::Hit => hits.push(pose * Point3::from(p.as_ref().unwrap().mean)),
+                    BeamStatus::Hit => hits.push(pose * Point3::from(d * p.unwrap().range)),
                     BeamStatus::NoReturn => misses.push(pose.rotation * d),
                     _ => {}
                 }
@@ -788,7 +861,7 @@ mod tests {
         let measured: Vec<_> = run
             .scans
             .iter()
-            .map(|s| measured_points(&view, s))
+            .map(|s| measured_ranges(&view, s))
             .collect();
         let shared = build_map_measured(
             &view,

@@ -19,7 +19,8 @@
 //! of a regular scanner; `--angular-step` overrides it.
 
 use super::model::{
-    pooled_points, propagator, split_chain, take_shared_motion, Method, REGISTERED_TRUTH_FROM_SCANS,
+    pooled_surface_points, propagator, split_chain, take_shared_motion, Method,
+    REGISTERED_TRUTH_FROM_SCANS,
 };
 use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Pose, Vector3};
@@ -332,7 +333,7 @@ fn node_points(
             ranges[slot] = points[i].as_ref().map(|_| r);
             slots.push(slot);
         }
-        let pooled = pooled_points(pooling, columns, &directions, &ranges, range);
+        let pooled = pooled_surface_points(pooling, columns, &directions, &ranges, range);
         for (&i, &slot) in grid.members.iter().zip(&slots) {
             if points[i].is_some() {
                 points[i] = pooled[slot];

@@ -3,7 +3,7 @@
 
 use super::metrics::{Measured, METRICS};
 use super::model::{
-    build_map_measured, measured_points, propagator, scan_chain, MapperView, Method,
+    build_map_measured, hit_point, measured_ranges, propagator, scan_chain, MapperView, Method,
 };
 use super::{simulate, Experiment, RunTruth};
 use crate::error::{Error, Result};
@@ -11,10 +11,11 @@ use crate::eval::ground_truth::{voxelise_at, voxelise_in};
 use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
 use crate::geometry::{Isometry3, Matrix3, Vector3};
+use crate::mapping::pooling::Pooled;
 use crate::mapping::Octree;
 use crate::sim::scan::ScanTruth;
 use crate::uncertainty::consistency::{nees, student_t_quantile, ConsistencyReport};
-use crate::uncertainty::{Propagator, UncertainPoint};
+use crate::uncertainty::Propagator;
 use rustc_hash::FxHashSet;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -108,7 +109,7 @@ pub fn run_seed(
     let measured: Vec<_> = run
         .scans
         .iter()
-        .map(|scan| measured_points(&view, scan))
+        .map(|scan| measured_ranges(&view, scan))
         .collect();
     let (mut rows, mut timings, mut maps) = (Vec::new(), Vec::new(), Vec::new());
     for &method in &experiment.methods {
@@ -133,7 +134,7 @@ pub fn run_seed(
         let mut pairs = Vec::new();
         for ((scan, truth), points) in run.scans.iter().zip(&run.truth.scans).zip(&measured) {
             if let Some(p) = propagator(method, &scan_chain(scan), experiment.sigma_set) {
-                pairs.extend(errors_against_truth(truth, points, p.as_ref()));
+                pairs.extend(errors_against_truth(&view, truth, points, p.as_ref()));
             }
         }
         let consistency =
@@ -211,19 +212,21 @@ pub fn score_external(
     ))
 }
 
-/// For each hit of a scan (its measured points): the error `truth −
-/// propagated mean` and the propagated covariance, for consistency checks
-/// against the simulator.
+/// For each hit of a scan (its measured ranges, as [`hit_point`]s): the
+/// error `true hit − propagated mean` and the propagated covariance, for
+/// consistency checks against the simulator.
 fn errors_against_truth(
+    view: &MapperView,
     truth: &ScanTruth,
-    points: &[Option<UncertainPoint>],
+    ranges: &[Pooled],
     propagator: &dyn Propagator,
 ) -> Vec<(Vector3, Matrix3)> {
-    points
+    ranges
         .iter()
+        .zip(&view.scanner.directions)
         .zip(&truth.beams)
-        .filter_map(|(point, t)| {
-            let g = propagator.propagate(point.as_ref()?);
+        .filter_map(|((p, d), t)| {
+            let g = propagator.propagate(&hit_point(view.range, d, p.as_ref()?));
             Some((t.point.coords - g.mean, g.covariance))
         })
         .collect()

@@ -18,7 +18,10 @@ use rayon::prelude::*;
 pub struct PooledRange {
     /// Where the beam's line meets the surface (m).
     pub range: f64,
-    /// The standard deviation of `range` (m).
+    /// The standard deviation of `range` (m): the range noise of a raw
+    /// range, the fitted plane's prediction σ where it crosses the beam's
+    /// nominal line for a pooled one (what a map draws, §5.5; where the
+    /// turned beam hit is [`PooledRange::covariance`]).
     pub sigma: f64,
     /// The unit normal of the fitted plane, if pooled.
     pub normal: Option<Vector3>,
@@ -150,7 +153,8 @@ impl PooledRange {
     /// `P = I − d nᵀ / (n·d)`, so the lateral term becomes
     /// `r² σ_a² P (I − d dᵀ) Pᵀ`: a slanted plane turns direction noise into
     /// range error (`r σ_a tan θ` along the beam), which the raw range
-    /// already holds and the plane's prediction does not.
+    /// already holds and the plane's prediction does not. The run's NEES
+    /// checks this covariance; a map draws `sigma` alone along the beam.
     pub fn covariance(&self, d: &Vector3, angular_sigma: f64) -> Option<Matrix3> {
         let n = self.normal?;
         let ddt = d * d.transpose();
