@@ -440,6 +440,45 @@ mod tests {
     }
 
     #[test]
+    fn the_nees_checks_pooled_hits_with_the_slide() {
+        // The NEES compares the true hit with the hit's covariance, whose
+        // spread along the beam holds the slide of a turned beam on a
+        // slanted plane; the maps draw the plane's prediction σ alone.
+        let mut experiment = Experiment::load(Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/experiments/quickstart.toml"
+        )))
+        .unwrap();
+        experiment.map.beam_pooling = crate::mapping::pooling::Pooling::Windows;
+        let run = simulate(&experiment, 1, |_| {}).unwrap();
+        let view = MapperView::of(&experiment);
+        let (scan, truth) = (&run.scans[0], &run.truth.scans[0]);
+        let ranges = measured_ranges(&view, scan);
+        let chain = scan_chain(scan);
+        let blind = propagator(Method::Blind, &chain, view.sigma_set).unwrap();
+        let pairs = errors_against_truth(&view, truth, &ranges, blind.as_ref());
+        let hits: Vec<_> = ranges
+            .iter()
+            .zip(&view.scanner.directions)
+            .filter_map(|(p, d)| p.map(|p| (p, d)))
+            .collect();
+        assert_eq!(pairs.len(), hits.len());
+        let rotation = chain.nominal().rotation;
+        let (mut pooled, mut wider) = (0, 0);
+        for ((p, d), (_, covariance)) in hits.iter().zip(&pairs) {
+            let v = rotation * *d;
+            let along = (v.transpose() * covariance * v)[(0, 0)];
+            assert!(along >= p.sigma * p.sigma * (1.0 - 1e-9));
+            if p.normal.is_some() {
+                pooled += 1;
+                wider += usize::from(along > 1.21 * p.sigma * p.sigma);
+            }
+        }
+        assert!(pooled > 1000, "{pooled} pooled hits");
+        assert!(wider * 10 > pooled, "{wider} of {pooled} with the slide");
+    }
+
+    #[test]
     fn t_quantiles() {
         assert!((student_t_quantile(1.0, 0.975) - 12.706).abs() < 1e-3);
         assert!((student_t_quantile(9.0, 0.975) - 2.262).abs() < 1e-3);
