@@ -232,13 +232,32 @@ fn map_beam_end(
 pub fn measured_ranges(view: &MapperView, scan: &Scan) -> Vec<Pooled> {
     let hit = |m: &Measurement| (m.status == BeamStatus::Hit).then_some(m.range);
     let ranges: Vec<Option<f64>> = scan.measurements.iter().map(hit).collect();
-    pool_ranges(
+    pooled_ranges(
         view.settings.beam_pooling,
         view.scanner.columns,
         &view.scanner.directions,
         &ranges,
-        |r| view.range.sigma(r),
-        view.range.angular_sigma,
+        view.range,
+    )
+}
+
+/// [`pool_ranges`] with the range model's noise: `ranges[k]` is beam k's
+/// measured range (`None`: no hit) along the unit camera-frame
+/// `directions[k]`, row by row with `columns` per row.
+fn pooled_ranges(
+    pooling: Pooling,
+    columns: usize,
+    directions: &[Vector3],
+    ranges: &[Option<f64>],
+    range: &RangeModel,
+) -> Vec<Pooled> {
+    pool_ranges(
+        pooling,
+        columns,
+        directions,
+        ranges,
+        |r| range.sigma(r),
+        range.angular_sigma,
     )
 }
 
@@ -261,15 +280,13 @@ pub fn hit_point(range: &RangeModel, d: &Vector3, p: &PooledRange) -> UncertainP
             mean: d * p.range,
             covariance,
         },
-        None => camera_point(range, d, p.range, p.sigma),
+        None => surface_point(range, d, p),
     }
 }
 
 /// The measured points of one raster of beams as a map draws them,
-/// pooled as `pooling` asks (docs/math.md §5.5): `ranges[k]` is beam k's
-/// measured range (`None`: no hit) along the unit camera-frame
-/// `directions[k]`, row by row with `columns` per row; each hit's
-/// [`surface_point`].
+/// pooled as `pooling` asks (docs/math.md §5.5; the raster as for
+/// [`pooled_ranges`]): each hit's [`surface_point`].
 pub fn pooled_surface_points(
     pooling: Pooling,
     columns: usize,
@@ -277,15 +294,7 @@ pub fn pooled_surface_points(
     ranges: &[Option<f64>],
     range: &RangeModel,
 ) -> Vec<Option<UncertainPoint>> {
-    let pooled = pool_ranges(
-        pooling,
-        columns,
-        directions,
-        ranges,
-        |r| range.sigma(r),
-        range.angular_sigma,
-    );
-    pooled
+    pooled_ranges(pooling, columns, directions, ranges, range)
         .iter()
         .zip(directions)
         .map(|(p, d)| p.as_ref().map(|p| surface_point(range, d, p)))
