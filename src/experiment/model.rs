@@ -382,6 +382,9 @@ pub fn build_map_measured(
             let points = shared.or(own.as_deref());
             let origin = ray_inputs_into(view, scan, points, &mut hits, &mut misses) + offset;
             hits.iter_mut().for_each(|h| *h += offset);
+            // Every thread prepares its own scan; the last, with nothing
+            // beside it, is spread over the pool.
+            updater.walk_alone(i + 1 < scans.len());
             updater.find_cells(&geometry, &origin, &hits, &misses, max_range);
             (updater, hits, misses)
         };

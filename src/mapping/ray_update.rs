@@ -6,7 +6,7 @@
 
 use super::octree::{Clamp, Key, Octree, LOG_ODDS_HIT, LOG_ODDS_MISS};
 use crate::geometry::{Point3, Vector3};
-use dense::DenseWalk;
+use dense::{DenseWalk, Walk};
 use rayon::prelude::*;
 use rustc_hash::FxHashSet;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -352,6 +352,10 @@ pub struct RayUpdater {
     one_at_a_time: bool,
     free: CellSet,
     occupied: CellSet,
+    /// Walk every scan's rays on the calling thread ([`RayUpdater::walk_alone`]).
+    alone: bool,
+    /// The walks of one chunk of rays, when one thread walks them all.
+    walks: Vec<Walk>,
 }
 
 /// Where one ray of a scan ends: the point, and whether it is a measured
@@ -407,6 +411,16 @@ impl RayUpdater {
         }
     }
 
+    /// With `alone`, [`RayUpdater::find_cells`] walks a scan's rays on the
+    /// calling thread instead of spreading them over the pool: for a
+    /// pipeline whose other threads are busy with other scans. The walk
+    /// then owns its bitmap and reads eight of its words at once (AVX-512);
+    /// the cells are the same either way. (A pool of one thread always
+    /// walks alone.)
+    pub fn walk_alone(&mut self, alone: bool) {
+        self.alone = alone;
+    }
+
     /// Inserts one scan: `hits` are measured end points; `misses` are the
     /// directions (unit) of beams that returned nothing, which carve free
     /// space up to `max_range`. Hits farther than `max_range` are truncated
@@ -452,32 +466,54 @@ impl RayUpdater {
         self.occupied.reset(lo, hi, dense_limit);
         // A ray is walked when both its ends lie in the tree (the origin does).
         if self.free.dense {
-            // Rays in parallel chunks, each setting bits (free and occupied);
-            // the sets are the same whatever the thread count, and listed
-            // afterwards.
-            let dense = DenseWalk {
-                tree,
-                origin: *origin,
-                max_range,
-                centre: tree.center(&start, 16),
-                start: self.free.index(&start),
-                free: &self.free,
-                occupied: &self.occupied,
-                strides: std::array::from_fn(|axis| self.free.stride(axis)),
-                lanes: !self.one_at_a_time,
-                wide: !self.one_at_a_time,
-            };
-            let hits = hits.par_chunks(RAYS_PER_TASK).map(Rays::Hits);
-            let misses = misses.par_chunks(RAYS_PER_TASK).map(Rays::Misses);
-            let buffer = || Vec::with_capacity(RAYS_PER_TASK);
-            hits.chain(misses).for_each_init(buffer, |walks, rays| {
+            // Rays in chunks, each setting bits (free and occupied); the sets
+            // are the same whatever the thread count, and listed afterwards.
+            let vectors = !self.one_at_a_time;
+            let begin = |dense: &DenseWalk, rays: Rays, walks: &mut Vec<Walk>| {
                 walks.clear();
                 match rays {
                     Rays::Hits(hits) => dense.begin_hits(hits, walks),
                     Rays::Misses(misses) => dense.begin_misses(misses, walks),
                 }
-                dense.mark_rays(walks);
-            });
+            };
+            if self.alone || rayon::current_num_threads() == 1 {
+                // On this thread only: the free bitmap is this walk's
+                // alone, which lets the walk read its words without
+                // atomics ([`dense::mark_exclusive`]).
+                let mut walks = std::mem::take(&mut self.walks);
+                let hits = hits.chunks(RAYS_PER_TASK).map(Rays::Hits);
+                for rays in hits.chain(misses.chunks(RAYS_PER_TASK).map(Rays::Misses)) {
+                    let walk = DenseWalk::new(
+                        tree,
+                        origin,
+                        max_range,
+                        start,
+                        (&self.free, &self.occupied),
+                        vectors,
+                    );
+                    begin(&walk, rays, &mut walks);
+                    let (start, lanes, wide) = (walk.start, walk.lanes, walk.wide);
+                    dense::mark_exclusive(&mut self.free.bits, start, &walks, lanes, wide);
+                }
+                self.walks = walks;
+            } else {
+                // Chunks in parallel.
+                let walk = DenseWalk::new(
+                    tree,
+                    origin,
+                    max_range,
+                    start,
+                    (&self.free, &self.occupied),
+                    vectors,
+                );
+                let hits = hits.par_chunks(RAYS_PER_TASK).map(Rays::Hits);
+                let misses = misses.par_chunks(RAYS_PER_TASK).map(Rays::Misses);
+                let buffer = || Vec::with_capacity(RAYS_PER_TASK);
+                hits.chain(misses).for_each_init(buffer, |walks, rays| {
+                    begin(&walk, rays, walks);
+                    walk.mark_rays(walks);
+                });
+            }
             // Occupied wins.
             self.free.list_marked(&mut self.occupied);
         } else {

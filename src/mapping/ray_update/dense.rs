@@ -6,7 +6,7 @@
 
 use super::{mark, CellSet, Dda, RayEnd};
 use crate::geometry::{Point3, Vector3};
-use crate::mapping::octree::Octree;
+use crate::mapping::octree::{Key, Octree};
 use std::sync::atomic::AtomicU64;
 
 /// What every ray of one scan shares: the grid, the origin and its cell,
@@ -44,7 +44,32 @@ pub(super) struct Walk {
     pub stop: isize,
 }
 
-impl DenseWalk<'_> {
+impl<'a> DenseWalk<'a> {
+    /// The rays of a scan from `origin` (in the cell `start`) on the
+    /// bitmaps `(free, occupied)` of one box, vectors used where the CPU
+    /// has them (`vectors`; false: one ray at a time).
+    pub fn new(
+        tree: &'a Octree,
+        origin: &Point3,
+        max_range: f64,
+        start: Key,
+        (free, occupied): (&'a CellSet, &'a CellSet),
+        vectors: bool,
+    ) -> Self {
+        DenseWalk {
+            tree,
+            origin: *origin,
+            max_range,
+            centre: tree.center(&start, 16),
+            start: free.index(&start),
+            free,
+            occupied,
+            strides: std::array::from_fn(|axis| free.stride(axis)),
+            lanes: vectors,
+            wide: vectors,
+        }
+    }
+
     /// The ray of each of `hits` ([`RayEnd::of_hit`]) that ends in the
     /// tree: its end cell marked occupied if it is a hit, and its walk
     /// appended to `walks` (none when it ends in the origin's cell).
@@ -110,27 +135,56 @@ impl DenseWalk<'_> {
     }
 
     /// Marks the free cells of every walk, the end cells excluded: the
-    /// origin's cell, where every walk starts, once.
+    /// origin's cell, where every walk starts, once. Other threads may
+    /// mark the same bitmap at the same time.
     pub fn mark_rays(&self, walks: &[Walk]) {
-        if walks.is_empty() {
-            return;
-        }
-        mark(&self.free.bits, self.start);
-        #[cfg(target_arch = "x86_64")]
-        if self.lanes && self.wide && std::arch::is_x86_feature_detected!("avx512f") {
+        mark_shared(&self.free.bits, self.start, walks, self.lanes, self.wide);
+    }
+}
+
+/// [`DenseWalk::mark_rays`] on a bitmap no other thread touches meanwhile:
+/// eight lanes (AVX-512) then read their eight words with one gather and
+/// step on when every bit is already set (most steps, where rays crowd),
+/// instead of testing them one by one. The same cells.
+pub(super) fn mark_exclusive(
+    bits: &mut [AtomicU64],
+    start: usize,
+    walks: &[Walk],
+    lanes: bool,
+    wide: bool,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if lanes && wide && !walks.is_empty() && std::arch::is_x86_feature_detected!("avx512f") {
+        mark(bits, start);
+        // SAFETY: the CPU has AVX-512F (checked just above); `bits` is
+        // borrowed mutably, so no other thread reads or writes it.
+        unsafe { super::wide::mark_rays_exclusive(bits, walks) };
+        return;
+    }
+    mark_shared(bits, start, walks, lanes, wide);
+}
+
+/// [`DenseWalk::mark_rays`] of the walks from cell `start` on `bits`.
+fn mark_shared(bits: &[AtomicU64], start: usize, walks: &[Walk], lanes: bool, wide: bool) {
+    if walks.is_empty() {
+        return;
+    }
+    mark(bits, start);
+    #[cfg(target_arch = "x86_64")]
+    {
+        if lanes && wide && std::arch::is_x86_feature_detected!("avx512f") {
             // SAFETY: the CPU has AVX-512F (checked just above).
-            unsafe { super::wide::mark_rays(&self.free.bits, walks) };
+            unsafe { super::wide::mark_rays(bits, walks) };
             return;
         }
-        #[cfg(target_arch = "x86_64")]
-        if self.lanes && std::arch::is_x86_feature_detected!("avx2") {
+        if lanes && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked just above).
-            unsafe { super::lanes::mark_rays(&self.free.bits, walks) };
+            unsafe { super::lanes::mark_rays(bits, walks) };
             return;
         }
-        for walk in walks {
-            finish(&self.free.bits, *walk);
-        }
+    }
+    for walk in walks {
+        finish(bits, *walk);
     }
 }
 
@@ -195,6 +249,17 @@ pub(super) trait LaneWalks: Sized {
     unsafe fn done(&self) -> u32;
     /// The lanes' cells.
     unsafe fn indices(&self) -> Self::Indices;
+    /// The lanes whose cell's bit in `bits` may not be set yet (bit `k`
+    /// for lane `k`): all of them unless an implementation reads the
+    /// words at once. A lane whose index lies outside `bits` is one of
+    /// them (its mark then fails as the scalar walk's would).
+    ///
+    /// # Safety
+    /// Besides the CPU features, no other thread may access `bits` during
+    /// the call (it may be read without atomics).
+    unsafe fn maybe_unset(&self, _bits: &[AtomicU64]) -> u32 {
+        (1u32 << Self::WIDTH) - 1
+    }
     /// Puts `walk` in `lane`.
     unsafe fn set(&mut self, lane: usize, walk: &Walk);
     /// The walk in `lane`, where it stands.
@@ -204,11 +269,17 @@ pub(super) trait LaneWalks: Sized {
 /// Marks the cells of every walk, as [`finish`] does one by one, `L::WIDTH`
 /// walks at a time: a lane whose walk ends takes the next.
 ///
+/// With `EXCLUSIVE`, a step whose lanes' bits are all set
+/// ([`LaneWalks::maybe_unset`]) marks nothing.
+///
 /// # Safety
 /// The CPU must have `L`'s features; inlined into a function compiled for
-/// them.
+/// them. With `EXCLUSIVE`, no other thread may access `bits` meanwhile.
 #[inline(always)]
-pub(super) unsafe fn mark_lanes<L: LaneWalks>(bits: &[AtomicU64], walks: &[Walk]) {
+pub(super) unsafe fn mark_lanes<L: LaneWalks, const EXCLUSIVE: bool>(
+    bits: &[AtomicU64],
+    walks: &[Walk],
+) {
     if walks.len() < L::WIDTH {
         walks.iter().for_each(|w| finish(bits, *w));
         return;
@@ -220,13 +291,25 @@ pub(super) unsafe fn mark_lanes<L: LaneWalks>(bits: &[AtomicU64], walks: &[Walk]
     loop {
         unsafe { lanes.step() };
         let done = unsafe { lanes.done() };
-        let index = unsafe { lanes.indices() };
         if done == 0 {
-            for i in index {
-                mark(bits, i as usize);
+            if EXCLUSIVE {
+                let unset = unsafe { lanes.maybe_unset(bits) };
+                if unset != 0 {
+                    let index = unsafe { lanes.indices() };
+                    for (lane, &i) in index.as_ref().iter().enumerate() {
+                        if unset & 1 << lane != 0 {
+                            mark(bits, i as usize);
+                        }
+                    }
+                }
+            } else {
+                for i in unsafe { lanes.indices() } {
+                    mark(bits, i as usize);
+                }
             }
             continue;
         }
+        let index = unsafe { lanes.indices() };
         // A lane's ray ended: the lane takes the next ray.
         let mut live = 0u32;
         for (lane, &i) in index.as_ref().iter().enumerate() {

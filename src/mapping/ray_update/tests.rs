@@ -111,11 +111,14 @@ fn assert_every_walk_matches_the_reference(
 ) -> usize {
     let mut reference = Octree::new(res);
     reference_scan(&mut reference, origin, hits, misses, max_range);
-    for (dense_limit, one_at_a_time) in WALKS {
+    for ((dense_limit, one_at_a_time), alone) in
+        WALKS.into_iter().flat_map(|w| [(w, false), (w, true)])
+    {
         let mut tree = Octree::new(res);
         let mut updater = RayUpdater {
             dense_limit,
             one_at_a_time,
+            alone,
             ..RayUpdater::default()
         };
         updater.insert_scan(&mut tree, origin, hits, misses, max_range);
@@ -123,7 +126,7 @@ fn assert_every_walk_matches_the_reference(
         assert_eq!(
             tree.leaves(),
             reference.leaves(),
-            "{dense_limit:?} {one_at_a_time}"
+            "{dense_limit:?} {one_at_a_time} alone {alone}"
         );
     }
     reference.leaves().len()
@@ -345,7 +348,7 @@ fn assert_lanes_walk_as_one(
     let tree = Octree::new(res);
     let start = tree.key(&origin).unwrap();
     let (lo, hi) = key_box(&tree, start, &origin, hits, misses, max_range);
-    let walked = |lanes: bool, wide: bool| {
+    let walked = |lanes: bool, wide: bool, alone: bool| {
         let (mut free, mut occupied) = (CellSet::default(), CellSet::default());
         let lo = lo.map(|v| v - 1);
         let hi = hi.map(|v| v + 1);
@@ -368,23 +371,37 @@ fn assert_lanes_walk_as_one(
         dense.begin_misses(misses, &mut walks);
         // Bit for bit, -0.0 and 0.0 apart.
         let set_up = format!("{walks:?}");
-        dense.mark_rays(&walks);
+        if alone {
+            let first = dense.start;
+            dense::mark_exclusive(&mut free.bits, first, &walks, lanes, wide);
+        } else {
+            dense.mark_rays(&walks);
+        }
         let bits =
             |set: &CellSet| -> Vec<u64> { set.bits.iter().map(|w| w.load(Relaxed)).collect() };
         (walks.len(), set_up, bits(&free), bits(&occupied))
     };
-    let (four, one) = (walked(true, false), walked(false, false));
+    let (four, one) = (walked(true, false, false), walked(false, false, false));
     assert_eq!(four.1, one.1, "the walks' set-up");
     assert!(four.2 == one.2, "the free cells");
     assert!(four.3 == one.3, "the occupied cells");
-    // Eight lanes (AVX-512) mark the same cells.
+    // Eight lanes (AVX-512) mark the same cells, sharing the bitmap or
+    // owning it (each step's words gathered at once).
     #[cfg(target_arch = "x86_64")]
     if !std::arch::is_x86_feature_detected!("avx512f") {
         eprintln!("no AVX-512F on this CPU: eight lanes not compared");
     }
-    let eight = walked(true, true);
-    assert!(eight.2 == one.2, "the free cells, eight lanes");
-    assert!(eight.3 == one.3, "the occupied cells, eight lanes");
+    for alone in [false, true] {
+        let eight = walked(true, true, alone);
+        assert!(
+            eight.2 == one.2,
+            "the free cells, eight lanes, alone {alone}"
+        );
+        assert!(
+            eight.3 == one.3,
+            "the occupied cells, eight lanes, alone {alone}"
+        );
+    }
     one.0
 }
 

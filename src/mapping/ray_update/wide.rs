@@ -34,7 +34,19 @@ struct Lanes {
 pub(super) unsafe fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
     // SAFETY: the CPU has AVX-512F (the caller's), and this function is
     // compiled for it.
-    unsafe { mark_lanes::<Lanes>(bits, walks) }
+    unsafe { mark_lanes::<Lanes, false>(bits, walks) }
+}
+
+/// [`mark_rays`] on a bitmap this thread alone holds: each step reads its
+/// eight words with one gather and marks only lanes whose bit is not set.
+///
+/// # Safety
+/// The CPU must have AVX-512F.
+#[target_feature(enable = "avx512f")]
+pub(super) unsafe fn mark_rays_exclusive(bits: &mut [AtomicU64], walks: &[Walk]) {
+    // SAFETY: the CPU has AVX-512F (the caller's); `bits` is borrowed
+    // mutably for the whole call, so no other thread accesses it.
+    unsafe { mark_lanes::<Lanes, true>(bits, walks) }
 }
 
 impl LaneWalks for Lanes {
@@ -106,6 +118,33 @@ impl LaneWalks for Lanes {
         // SAFETY: eight i64 written to an array of eight.
         unsafe { _mm512_storeu_epi64(out.as_mut_ptr(), self.index) };
         out
+    }
+
+    /// One masked gather of the lanes' words (lanes whose index lies
+    /// outside `bits` are not read, and count as unset).
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn maybe_unset(&self, bits: &[AtomicU64]) -> u32 {
+        let words = _mm512_srli_epi64::<6>(self.index);
+        // Unsigned: a negative index is outside too.
+        let inside = _mm512_cmplt_epu64_mask(words, _mm512_set1_epi64(bits.len() as i64));
+        // SAFETY: only the lanes of `inside` are read, each an element of
+        // `bits` (an `AtomicU64` has the layout of an `i64`); no other
+        // thread accesses `bits` (the caller's), so a plain read is no
+        // data race.
+        let word = unsafe {
+            _mm512_mask_i64gather_epi64::<8>(
+                _mm512_setzero_si512(),
+                inside,
+                words,
+                bits.as_ptr().cast::<i64>(),
+            )
+        };
+        let bit = _mm512_sllv_epi64(
+            _mm512_set1_epi64(1),
+            _mm512_and_si512(self.index, _mm512_set1_epi64(63)),
+        );
+        u32::from(_mm512_testn_epi64_mask(word, bit) | !inside)
     }
 
     /// Puts `walk` in `lane`.
