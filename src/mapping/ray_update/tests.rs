@@ -385,6 +385,13 @@ fn assert_lanes_walk_as_one(
     assert_eq!(four.1, one.1, "the walks' set-up");
     assert!(four.2 == one.2, "the free cells");
     assert!(four.3 == one.3, "the occupied cells");
+    // Four lanes owning the bitmap (each step's words gathered at once).
+    let four_alone = walked(true, false, true);
+    assert!(four_alone.2 == one.2, "the free cells, four lanes alone");
+    assert!(
+        four_alone.3 == one.3,
+        "the occupied cells, four lanes alone"
+    );
     // Eight lanes (AVX-512) mark the same cells, sharing the bitmap or
     // owning it (each step's words gathered at once).
     #[cfg(target_arch = "x86_64")]
