@@ -468,7 +468,7 @@ impl RayUpdater {
         if self.free.dense {
             // Rays in chunks, each setting bits (free and occupied); the sets
             // are the same whatever the thread count, and listed afterwards.
-            let vectors = !self.one_at_a_time;
+            let scan = (tree, *origin, max_range, start, !self.one_at_a_time);
             let begin = |dense: &DenseWalk, rays: Rays, walks: &mut Vec<Walk>| {
                 walks.clear();
                 match rays {
@@ -483,14 +483,7 @@ impl RayUpdater {
                 let mut walks = std::mem::take(&mut self.walks);
                 let hits = hits.chunks(RAYS_PER_TASK).map(Rays::Hits);
                 for rays in hits.chain(misses.chunks(RAYS_PER_TASK).map(Rays::Misses)) {
-                    let walk = DenseWalk::new(
-                        tree,
-                        origin,
-                        max_range,
-                        start,
-                        (&self.free, &self.occupied),
-                        vectors,
-                    );
+                    let walk = DenseWalk::new(scan, (&self.free, &self.occupied));
                     begin(&walk, rays, &mut walks);
                     let (start, lanes, wide) = (walk.start, walk.lanes, walk.wide);
                     dense::mark_exclusive(&mut self.free.bits, start, &walks, lanes, wide);
@@ -498,14 +491,7 @@ impl RayUpdater {
                 self.walks = walks;
             } else {
                 // Chunks in parallel.
-                let walk = DenseWalk::new(
-                    tree,
-                    origin,
-                    max_range,
-                    start,
-                    (&self.free, &self.occupied),
-                    vectors,
-                );
+                let walk = DenseWalk::new(scan, (&self.free, &self.occupied));
                 let hits = hits.par_chunks(RAYS_PER_TASK).map(Rays::Hits);
                 let misses = misses.par_chunks(RAYS_PER_TASK).map(Rays::Misses);
                 let buffer = || Vec::with_capacity(RAYS_PER_TASK);

@@ -45,20 +45,17 @@ pub(super) struct Walk {
 }
 
 impl<'a> DenseWalk<'a> {
-    /// The rays of a scan from `origin` (in the cell `start`) on the
-    /// bitmaps `(free, occupied)` of one box, vectors used where the CPU
-    /// has them (`vectors`; false: one ray at a time).
+    /// The rays of a scan, `(tree, origin, max_range, start, vectors)`:
+    /// from `origin` (in the cell `start`) on the bitmaps
+    /// `(free, occupied)` of one box, vectors used where the CPU has them
+    /// (`vectors`; false: one ray at a time).
     pub fn new(
-        tree: &'a Octree,
-        origin: &Point3,
-        max_range: f64,
-        start: Key,
+        (tree, origin, max_range, start, vectors): (&'a Octree, Point3, f64, Key, bool),
         (free, occupied): (&'a CellSet, &'a CellSet),
-        vectors: bool,
     ) -> Self {
         DenseWalk {
             tree,
-            origin: *origin,
+            origin,
             max_range,
             centre: tree.center(&start, 16),
             start: free.index(&start),
