@@ -7,7 +7,7 @@
 use super::{mark, CellSet, Dda, RayEnd};
 use crate::geometry::{Point3, Vector3};
 use crate::mapping::octree::{Key, Octree};
-use std::sync::atomic::AtomicU64;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 /// What every ray of one scan shares: the grid, the origin and its cell,
 /// the free and occupied bitmaps (one box), computed once per scan.
@@ -246,17 +246,6 @@ pub(super) trait LaneWalks: Sized {
     unsafe fn done(&self) -> u32;
     /// The lanes' cells.
     unsafe fn indices(&self) -> Self::Indices;
-    /// The lanes whose cell's bit in `bits` may not be set yet (bit `k`
-    /// for lane `k`): all of them unless an implementation reads the
-    /// words at once. A lane whose index lies outside `bits` is one of
-    /// them (its mark then fails as the scalar walk's would).
-    ///
-    /// # Safety
-    /// Besides the CPU features, no other thread may access `bits` during
-    /// the call (it may be read without atomics).
-    unsafe fn maybe_unset(&self, _bits: &[AtomicU64]) -> u32 {
-        (1u32 << Self::WIDTH) - 1
-    }
     /// Puts `walk` in `lane`.
     unsafe fn set(&mut self, lane: usize, walk: &Walk);
     /// The walk in `lane`, where it stands.
@@ -266,17 +255,11 @@ pub(super) trait LaneWalks: Sized {
 /// Marks the cells of every walk, as [`finish`] does one by one, `L::WIDTH`
 /// walks at a time: a lane whose walk ends takes the next.
 ///
-/// With `EXCLUSIVE`, a step whose lanes' bits are all set
-/// ([`LaneWalks::maybe_unset`]) marks nothing.
-///
 /// # Safety
 /// The CPU must have `L`'s features; inlined into a function compiled for
-/// them. With `EXCLUSIVE`, no other thread may access `bits` meanwhile.
+/// them.
 #[inline(always)]
-pub(super) unsafe fn mark_lanes<L: LaneWalks, const EXCLUSIVE: bool>(
-    bits: &[AtomicU64],
-    walks: &[Walk],
-) {
+pub(super) unsafe fn mark_lanes<L: LaneWalks>(bits: &[AtomicU64], walks: &[Walk]) {
     if walks.len() < L::WIDTH {
         walks.iter().for_each(|w| finish(bits, *w));
         return;
@@ -289,20 +272,8 @@ pub(super) unsafe fn mark_lanes<L: LaneWalks, const EXCLUSIVE: bool>(
         unsafe { lanes.step() };
         let done = unsafe { lanes.done() };
         if done == 0 {
-            if EXCLUSIVE {
-                let unset = unsafe { lanes.maybe_unset(bits) };
-                if unset != 0 {
-                    let index = unsafe { lanes.indices() };
-                    for (lane, &i) in index.as_ref().iter().enumerate() {
-                        if unset & 1 << lane != 0 {
-                            mark(bits, i as usize);
-                        }
-                    }
-                }
-            } else {
-                for i in unsafe { lanes.indices() } {
-                    mark(bits, i as usize);
-                }
+            for i in unsafe { lanes.indices() } {
+                mark(bits, i as usize);
             }
             continue;
         }
@@ -322,10 +293,28 @@ pub(super) unsafe fn mark_lanes<L: LaneWalks, const EXCLUSIVE: bool>(
         if live != all {
             // No rays left for the lanes that ended: the others finish
             // one by one.
-            for lane in (0..L::WIDTH).filter(|lane| live & 1 << lane != 0) {
+            for lane in lanes_of(live) {
                 finish(bits, unsafe { lanes.get(lane) });
             }
             return;
         }
     }
+}
+
+/// The lanes of `mask` (bit `k` for lane `k`), lowest first.
+#[inline(always)]
+pub(super) fn lanes_of(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        let lane = mask.trailing_zeros() as usize;
+        mask &= mask.wrapping_sub(1);
+        (lane < 32).then_some(lane)
+    })
+}
+
+/// Marks cell `i` of a bitmap no other thread accesses meanwhile: a plain
+/// read and write instead of [`mark`]'s atomic read-modify-write.
+#[inline(always)]
+pub(super) fn mark_owned(bits: &[AtomicU64], i: usize) {
+    let word = &bits[i / 64];
+    word.store(word.load(Relaxed) | 1 << (i % 64), Relaxed);
 }

@@ -200,7 +200,7 @@ struct Lanes {
 pub(super) unsafe fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
     // SAFETY: the CPU has AVX2 (the caller's), and this function is
     // compiled for it.
-    unsafe { mark_lanes::<Lanes, false>(bits, walks) }
+    unsafe { mark_lanes::<Lanes>(bits, walks) }
 }
 
 impl LaneWalks for Lanes {

@@ -4,7 +4,7 @@
 //! lane whose axis is not taken is left as it is (masked additions), so the
 //! same cells.
 
-use super::dense::{mark_lanes, LaneWalks, Walk};
+use super::dense::{finish, lanes_of, mark_lanes, mark_owned, LaneWalks, Walk};
 use std::arch::x86_64::*;
 use std::sync::atomic::AtomicU64;
 
@@ -25,8 +25,8 @@ struct Lanes {
     stop: __m512i,
 }
 
-/// Marks the cells of every walk, as [`finish`](super::dense::finish)
-/// does one by one, eight at a time ([`mark_lanes`]).
+/// Marks the cells of every walk, as [`finish`] does one by one, eight at
+/// a time ([`mark_lanes`]).
 ///
 /// # Safety
 /// The CPU must have AVX-512F.
@@ -34,19 +34,106 @@ struct Lanes {
 pub(super) unsafe fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
     // SAFETY: the CPU has AVX-512F (the caller's), and this function is
     // compiled for it.
-    unsafe { mark_lanes::<Lanes, false>(bits, walks) }
+    unsafe { mark_lanes::<Lanes>(bits, walks) }
 }
 
 /// [`mark_rays`] on a bitmap this thread alone holds: each step reads its
-/// eight words with one gather and marks only lanes whose bit is not set.
+/// eight words with one gather and marks only lanes whose bit is not set
+/// ([`mark_owned`]); ended lanes take the next walks in the same branch,
+/// taken on a few steps in ten where rays crowd.
 ///
 /// # Safety
 /// The CPU must have AVX-512F.
 #[target_feature(enable = "avx512f")]
 pub(super) unsafe fn mark_rays_exclusive(bits: &mut [AtomicU64], walks: &[Walk]) {
-    // SAFETY: the CPU has AVX-512F (the caller's); `bits` is borrowed
-    // mutably for the whole call, so no other thread accesses it.
-    unsafe { mark_lanes::<Lanes, true>(bits, walks) }
+    let bits: &[AtomicU64] = bits;
+    if walks.len() < Lanes::WIDTH {
+        walks.iter().for_each(|w| finish(bits, *w));
+        return;
+    }
+    const ALL: __mmask8 = 0xff;
+    // SAFETY (every `Lanes` call below): the CPU has AVX-512F (the
+    // caller's); `bits` was borrowed mutably, so no other thread accesses
+    // it during the call.
+    let mut lanes = unsafe { Lanes::load(walks) };
+    let mut next = Lanes::WIDTH;
+    loop {
+        unsafe { lanes.step() };
+        let live = unsafe { lanes.live() };
+        let unset = unsafe { lanes.unset(bits, live) };
+        if live == ALL && unset == 0 {
+            continue;
+        }
+        let index = unsafe { lanes.indices() };
+        for lane in lanes_of(u32::from(unset)) {
+            mark_owned(bits, index[lane] as usize);
+        }
+        if live == ALL {
+            continue;
+        }
+        // Ended lanes take the next walks.
+        let mut going = ALL;
+        for lane in lanes_of(u32::from(!live)) {
+            if let Some(walk) = walks.get(next) {
+                unsafe { lanes.set(lane, walk) };
+                next += 1;
+            } else {
+                going &= !(1 << lane);
+            }
+        }
+        if going != ALL {
+            // No walks left for them: the others finish one by one.
+            for lane in lanes_of(u32::from(going)) {
+                finish(bits, unsafe { lanes.get(lane) });
+            }
+            return;
+        }
+    }
+}
+
+impl Lanes {
+    /// The lanes whose walk goes on (bit `k` for lane `k`): not at the end
+    /// cell, and not past the segment's length on every axis (the least t
+    /// is not; unordered counts as not past, as in
+    /// [`finish`](super::dense::finish)).
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn live(&self) -> __mmask8 {
+        let before_stop = _mm512_cmpneq_epi64_mask(self.index, self.stop);
+        let least = _mm512_min_pd(_mm512_min_pd(self.tx, self.ty), self.tz);
+        _mm512_mask_cmp_pd_mask::<_CMP_NGT_UQ>(before_stop, least, self.length)
+    }
+
+    /// The lanes of `live` whose cell's bit in `bits` is not set, read with
+    /// one masked gather; a lane whose index lies outside `bits` is not
+    /// read and counts as not set (its mark then fails as the scalar
+    /// walk's would).
+    ///
+    /// # Safety
+    /// Besides AVX-512F, no other thread may access `bits` during the call
+    /// (its words are read without atomics).
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn unset(&self, bits: &[AtomicU64], live: __mmask8) -> __mmask8 {
+        let words = _mm512_srli_epi64::<6>(self.index);
+        // Unsigned: a negative index is outside too.
+        let inside = _mm512_cmplt_epu64_mask(words, _mm512_set1_epi64(bits.len() as i64));
+        // SAFETY: only the lanes of `inside` are read, each an element of
+        // `bits` (an `AtomicU64` has the layout of an `i64`); no other
+        // thread accesses `bits` (the caller's), so a plain read is no
+        // data race.
+        let word = unsafe {
+            _mm512_mask_i64gather_epi64::<8>(
+                _mm512_setzero_si512(),
+                inside,
+                words,
+                bits.as_ptr().cast::<i64>(),
+            )
+        };
+        let bit_first =
+            _mm512_srlv_epi64(word, _mm512_and_si512(self.index, _mm512_set1_epi64(63)));
+        _mm512_mask_testn_epi64_mask(live, bit_first, _mm512_set1_epi64(1))
+    }
 }
 
 impl LaneWalks for Lanes {
@@ -99,15 +186,12 @@ impl LaneWalks for Lanes {
         self.index = _mm512_add_epi64(self.index, step);
     }
 
-    /// The lanes whose walk has ended (bit `k` for lane `k`): at the end
-    /// cell, or past the segment's length on every axis.
+    /// The lanes whose walk has ended (bit `k` for lane `k`): those not
+    /// [`Lanes::live`].
     #[target_feature(enable = "avx512f")]
     #[inline]
     unsafe fn done(&self) -> u32 {
-        let at_stop = _mm512_cmpeq_epi64_mask(self.index, self.stop);
-        // All three past the length: the least is (no t is NaN).
-        let least = _mm512_min_pd(_mm512_min_pd(self.tx, self.ty), self.tz);
-        u32::from(at_stop | _mm512_cmp_pd_mask::<_CMP_GT_OQ>(least, self.length))
+        u32::from(!unsafe { self.live() })
     }
 
     /// The lanes' cells (bitmap indices).
@@ -118,33 +202,6 @@ impl LaneWalks for Lanes {
         // SAFETY: eight i64 written to an array of eight.
         unsafe { _mm512_storeu_epi64(out.as_mut_ptr(), self.index) };
         out
-    }
-
-    /// One masked gather of the lanes' words (lanes whose index lies
-    /// outside `bits` are not read, and count as unset).
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn maybe_unset(&self, bits: &[AtomicU64]) -> u32 {
-        let words = _mm512_srli_epi64::<6>(self.index);
-        // Unsigned: a negative index is outside too.
-        let inside = _mm512_cmplt_epu64_mask(words, _mm512_set1_epi64(bits.len() as i64));
-        // SAFETY: only the lanes of `inside` are read, each an element of
-        // `bits` (an `AtomicU64` has the layout of an `i64`); no other
-        // thread accesses `bits` (the caller's), so a plain read is no
-        // data race.
-        let word = unsafe {
-            _mm512_mask_i64gather_epi64::<8>(
-                _mm512_setzero_si512(),
-                inside,
-                words,
-                bits.as_ptr().cast::<i64>(),
-            )
-        };
-        let bit = _mm512_sllv_epi64(
-            _mm512_set1_epi64(1),
-            _mm512_and_si512(self.index, _mm512_set1_epi64(63)),
-        );
-        u32::from(_mm512_testn_epi64_mask(word, bit) | !inside)
     }
 
     /// Puts `walk` in `lane`.
