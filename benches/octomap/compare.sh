@@ -18,14 +18,8 @@ experiment=${1:-experiments/octomap_bench.toml}
 shift || true
 resolutions=${*:-0.02 0.05}
 rounds=${ROUNDS:-5}
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-
-g++ -O2 -std=c++17 benches/octomap/insert.cpp -o "$work/insert" -loctomap -loctomath
-cargo build --release --quiet
-sigmap=target/release/sigmap
-
-rate() { sed -n 's/.*(\([0-9.]*\) M beams\/s).*/\1/p'; }
+# shellcheck source=benches/octomap/setup.sh
+source benches/octomap/setup.sh
 per_leaf() { sed -n 's/.*(\([0-9.]*\) per leaf.*/\1/p'; }
 
 printf '%-6s %-12s %12s %9s %14s\n' res method "M rays/s" "vs OctoMap" "bytes/leaf"

@@ -21,13 +21,8 @@ if ! [[ $rounds =~ ^[0-9]+$ ]] || ((rounds < 2)); then
   echo "paired.sh: ROUNDS=$rounds: need a whole number of rounds, at least 2" >&2
   exit 2
 fi
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-
-g++ -O2 -std=c++17 benches/octomap/insert.cpp -o "$work/insert" -loctomap -loctomath
-cargo build --release --quiet
-sigmap=target/release/sigmap
-rate() { sed -n 's/.*(\([0-9.]*\) M beams\/s).*/\1/p'; }
+# shellcheck source=benches/octomap/setup.sh
+source benches/octomap/setup.sh
 
 "$sigmap" map "$experiment" --method ray_update --resolution "$res" --quiet \
   --out "$work/export.ot" --export-rays "$work/rays.bin"
