@@ -385,7 +385,8 @@ fn assert_lanes_walk_as_one(
     assert_eq!(four.1, one.1, "the walks' set-up");
     assert!(four.2 == one.2, "the free cells");
     assert!(four.3 == one.3, "the occupied cells");
-    // Four lanes owning the bitmap (each step's words gathered at once).
+    // Four lanes given the bitmap to own: no owned four-lane walk, so
+    // `mark_exclusive` falls back to the shared one, and the same cells.
     let four_alone = walked(true, false, true);
     assert!(four_alone.2 == one.2, "the free cells, four lanes alone");
     assert!(
