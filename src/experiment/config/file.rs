@@ -1,0 +1,172 @@
+//! The experiment file as written: the TOML schema that `Experiment::load`
+//! reads and checks (unknown keys are errors).
+
+use super::SweepAxis;
+use crate::mapping::pooling::Pooling;
+use crate::mapping::settings::MapProbabilities;
+use crate::sim::sensor::ScannerSpec;
+use serde::Deserialize;
+use std::path::PathBuf;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ExperimentFile {
+    pub(super) name: Option<String>,
+    #[serde(default)]
+    pub(super) description: String,
+    pub(super) scene: PathBuf,
+    pub(super) error_profile: PathBuf,
+    #[serde(default = "default_seed")]
+    pub(super) seed: u64,
+    #[serde(default = "default_resolution")]
+    pub(super) resolution: f64,
+    pub(super) risk: Option<f64>,
+    #[serde(default)]
+    pub(super) grid_offset: bool,
+    #[serde(default)]
+    pub(super) beam_pooling: PoolingSpec,
+    #[serde(default)]
+    pub(super) interpolate_beams: SwitchSpec,
+    /// `[map]`: each setting may be swept as `experiment.map.<name>` once set.
+    #[serde(default)]
+    pub(super) map: MapProbabilities,
+    /// `[unscented]`: the scaled sigma-point set instead of the paper's.
+    pub(super) unscented: Option<ScaledSetSpec>,
+    pub(super) seeds: Option<Vec<u64>>,
+    pub(super) methods: Option<Vec<String>>,
+    pub(super) robot: MountSpec,
+    #[serde(default)]
+    pub(super) world_from_scene: PoseSpec,
+    pub(super) sensor: ScannerSpec,
+    #[serde(rename = "viewpoint", default)]
+    pub(super) viewpoints: Vec<ViewpointSpec>,
+    #[serde(rename = "sweep", default)]
+    pub(super) sweeps: Vec<SweepAxis>,
+}
+
+/// `beam_pooling` as written: `true` / `false`, or a mode's name (a string,
+/// so that a sweep can take the modes: `"off"`, `"faces"`, `"windows"`).
+#[derive(Deserialize)]
+#[serde(untagged)]
+pub(super) enum PoolingSpec {
+    Switch(bool),
+    Named(String),
+}
+
+impl Default for PoolingSpec {
+    fn default() -> Self {
+        Self::Switch(false)
+    }
+}
+
+impl PoolingSpec {
+    /// The mode, or what to write instead.
+    pub(super) fn pooling(&self) -> std::result::Result<Pooling, String> {
+        match self {
+            PoolingSpec::Switch(false) => Ok(Pooling::Off),
+            PoolingSpec::Switch(true) => Ok(Pooling::Windows),
+            PoolingSpec::Named(name) => Pooling::from_name(name).ok_or_else(|| {
+                format!(
+                    "beam_pooling = \"{name}\": use \"faces\" (large planar faces only), \"windows\" \
+                     or true (every beam's window and the faces), or \"off\" or false"
+                )
+            }),
+        }
+    }
+}
+
+/// A switch as written: `true` / `false`, or `"on"` / `"off"` (a string, so
+/// that a sweep can take both).
+#[derive(Deserialize)]
+#[serde(untagged)]
+pub(super) enum SwitchSpec {
+    Switch(bool),
+    Named(String),
+}
+
+impl Default for SwitchSpec {
+    fn default() -> Self {
+        Self::Switch(false)
+    }
+}
+
+impl SwitchSpec {
+    /// Whether it is on, or what to write instead (`name`: the setting).
+    pub(super) fn on(&self, name: &str) -> std::result::Result<bool, String> {
+        match self {
+            SwitchSpec::Switch(on) => Ok(*on),
+            SwitchSpec::Named(word) => match word.as_str() {
+                "on" => Ok(true),
+                "off" => Ok(false),
+                _ => Err(format!(
+                    "{name} = \"{word}\": use true or \"on\", false or \"off\""
+                )),
+            },
+        }
+    }
+}
+
+pub(super) fn default_seed() -> u64 {
+    1
+}
+
+pub(super) fn default_resolution() -> f64 {
+    0.01
+}
+
+pub(super) fn default_base_link() -> String {
+    "base_link".into()
+}
+
+pub(super) fn default_sensor_link() -> String {
+    "laser".into()
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct MountSpec {
+    pub(super) urdf: PathBuf,
+    #[serde(default = "default_base_link")]
+    pub(super) base_link: String,
+    pub(super) flange_link: String,
+    #[serde(default = "default_sensor_link")]
+    pub(super) sensor_link: String,
+    #[serde(default)]
+    pub(super) xyz: [f64; 3],
+    #[serde(default)]
+    pub(super) rpy: [f64; 3],
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub(super) struct PoseSpec {
+    #[serde(default)]
+    pub(super) xyz: [f64; 3],
+    #[serde(default)]
+    pub(super) rpy: [f64; 3],
+}
+
+/// `[unscented]`: the Wan–van der Merwe scaled set (docs/math.md §3.2) for
+/// the `unscented` and `correlated` methods.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ScaledSetSpec {
+    pub(super) alpha: f64,
+    #[serde(default = "default_beta")]
+    pub(super) beta: f64,
+    #[serde(default)]
+    pub(super) kappa: f64,
+}
+
+pub(super) fn default_beta() -> f64 {
+    crate::uncertainty::unscented::DEFAULT_BETA
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ViewpointSpec {
+    pub(super) joints: Option<Vec<f64>>,
+    pub(super) look_at: Option<[f64; 3]>,
+    pub(super) distance: Option<f64>,
+    pub(super) from: Option<[f64; 3]>,
+}

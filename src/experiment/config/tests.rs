@@ -1,0 +1,144 @@
+use super::file::{PoolingSpec, SwitchSpec};
+use super::*;
+use crate::mapping::pooling::Pooling;
+
+#[test]
+fn grid_offsets_are_sub_voxel_per_seed_and_zero_when_off() {
+    let path = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/quickstart.toml"
+    ));
+    let mut experiment = Experiment::load(path).unwrap();
+    assert!(!experiment.grid_offset);
+    assert_eq!(experiment.map_offset(1), Vector3::zeros());
+    experiment.grid_offset = true;
+    let res = experiment.resolution;
+    let offsets: Vec<Vector3> = (1..=20).map(|s| experiment.map_offset(s)).collect();
+    for o in &offsets {
+        assert!(o.iter().all(|c| (0.0..res).contains(c)), "{o:?}");
+    }
+    assert_eq!(experiment.map_offset(3), offsets[2], "reproducible");
+    for (i, a) in offsets.iter().enumerate() {
+        for b in &offsets[i + 1..] {
+            assert!((a - b).amax() > 0.0, "two seeds share an offset");
+        }
+    }
+    // Spread over the cell, not stuck in a corner: each axis's mean near res/2.
+    let mean = offsets.iter().sum::<Vector3>() / 20.0;
+    assert!(
+        mean.iter().all(|c| (0.3 * res..0.7 * res).contains(c)),
+        "{mean:?}"
+    );
+}
+
+#[test]
+fn interpolate_beams_reads_a_switch_or_on_and_off() {
+    #[derive(Deserialize)]
+    struct File {
+        #[serde(default)]
+        interpolate_beams: SwitchSpec,
+    }
+    let read = |text: &str| {
+        toml::from_str::<File>(text)
+            .unwrap()
+            .interpolate_beams
+            .on("interpolate_beams")
+    };
+    assert_eq!(read(""), Ok(false));
+    assert_eq!(read("interpolate_beams = true"), Ok(true));
+    assert_eq!(read("interpolate_beams = \"on\""), Ok(true));
+    assert_eq!(read("interpolate_beams = \"off\""), Ok(false));
+    assert!(read("interpolate_beams = \"yes\"")
+        .unwrap_err()
+        .starts_with("interpolate_beams = \"yes\": use true"));
+}
+
+#[test]
+fn beam_pooling_reads_a_switch_or_a_mode() {
+    #[derive(Deserialize)]
+    struct File {
+        #[serde(default)]
+        beam_pooling: PoolingSpec,
+    }
+    let read = |text: &str| toml::from_str::<File>(text).unwrap().beam_pooling.pooling();
+    assert_eq!(read(""), Ok(Pooling::Off));
+    assert_eq!(read("beam_pooling = false"), Ok(Pooling::Off));
+    assert_eq!(read("beam_pooling = true"), Ok(Pooling::Windows));
+    assert_eq!(read("beam_pooling = \"faces\""), Ok(Pooling::Faces));
+    assert_eq!(read("beam_pooling = \"windows\""), Ok(Pooling::Windows));
+    assert_eq!(read("beam_pooling = \"off\""), Ok(Pooling::Off));
+    let error = read("beam_pooling = \"face\"").unwrap_err();
+    assert!(
+        error.starts_with("beam_pooling = \"face\": use \"faces\""),
+        "{error}"
+    );
+}
+
+#[test]
+fn beam_pooling_is_a_string_sweep_axis() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
+        .unwrap()
+        .replace("\"../", &format!("\"{root}/"))
+        .replace("\"profiles/", &format!("\"{root}/experiments/profiles/"))
+        .replacen("seed = 1", "seed = 1\nbeam_pooling = \"off\"", 1)
+        + "\n[[sweep]]\nfield = \"experiment.beam_pooling\"\nvalues = [\"off\", \"faces\", \"windows\"]\n";
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("pooling.toml");
+    std::fs::write(&path, text).unwrap();
+    let experiment = Experiment::load(&path).unwrap();
+    let modes: Vec<Pooling> = experiment
+        .cells()
+        .iter()
+        .map(|cell| Experiment::load_cell(&path, cell).unwrap().map.beam_pooling)
+        .collect();
+    assert_eq!(modes, [Pooling::Off, Pooling::Faces, Pooling::Windows]);
+}
+
+#[test]
+fn sweep_cells_and_overrides() {
+    let path = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/consistency.toml"
+    ));
+    let experiment = Experiment::load(path).unwrap();
+    let cells = experiment.cells();
+    assert_eq!(cells.len(), 3);
+    let stressed = Experiment::load_cell(path, &cells[2]).unwrap();
+    assert_eq!(stressed.profile.name, "stressed");
+    assert_eq!(
+        Experiment::cell_label(&cells[0]),
+        "experiment.error_profile=profiles/industrial.toml"
+    );
+    let number = [(
+        "experiment.sensor.max_range".to_string(),
+        SweepValue::Number(1.5),
+    )];
+    assert_eq!(
+        Experiment::load_cell(path, &number)
+            .unwrap()
+            .scanner
+            .max_range,
+        1.5
+    );
+    let wrong = [(
+        "experiment.sensor.max_range".to_string(),
+        SweepValue::Text("far".into()),
+    )];
+    let msg = Experiment::load_cell(path, &wrong)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        msg.contains("holds float") && msg.contains("string"),
+        "{msg}"
+    );
+    let scale = [("pose_error_scale".to_string(), SweepValue::Number(2.0))];
+    let scaled = Experiment::load_cell(path, &scale).unwrap();
+    assert!(
+        (scaled.profile.world_from_scene[(0, 0)]
+            - 4.0 * experiment.profile.world_from_scene[(0, 0)])
+            .abs()
+            < 1e-18
+    );
+}
