@@ -106,19 +106,19 @@ impl SwitchSpec {
     }
 }
 
-pub(super) fn default_seed() -> u64 {
+fn default_seed() -> u64 {
     1
 }
 
-pub(super) fn default_resolution() -> f64 {
+fn default_resolution() -> f64 {
     0.01
 }
 
-pub(super) fn default_base_link() -> String {
+fn default_base_link() -> String {
     "base_link".into()
 }
 
-pub(super) fn default_sensor_link() -> String {
+fn default_sensor_link() -> String {
     "laser".into()
 }
 
@@ -158,7 +158,7 @@ pub(super) struct ScaledSetSpec {
     pub(super) kappa: f64,
 }
 
-pub(super) fn default_beta() -> f64 {
+fn default_beta() -> f64 {
     crate::uncertainty::unscented::DEFAULT_BETA
 }
 
