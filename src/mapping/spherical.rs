@@ -14,7 +14,7 @@
 //! field of view across the poles or the azimuth wrap (§8, open question 3,
 //! leaves the choice open). Merging costs one extra rotation.
 
-use super::chord::{Beam, Surface, TAIL};
+use super::chord::{Beam, Surface};
 use crate::geometry::{floor, Matrix3, Vector3};
 use rayon::prelude::*;
 use tangent::TangentBins;
@@ -46,41 +46,6 @@ impl Axis {
     /// Upper edge of the last bin.
     pub fn end(&self) -> f64 {
         self.start + self.step * self.count as f64
-    }
-}
-
-/// Aggregate of the beams of a box of angular bins.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BoxSummary {
-    /// Smallest range where some beam's surface band starts (before it every
-    /// beam says "free"); `+∞` when no beam.
-    pub near: f64,
-    /// Largest range where some beam still carries information (`r + TAIL σ`,
-    /// or the maximum range for a no-return beam); `−∞` when no beam.
-    pub far: f64,
-    /// Largest `TAIL σ_o`: beyond it the origin step is complete.
-    pub origin: f64,
-    /// Angular bins holding at least one beam.
-    pub filled: u32,
-    /// Angular bins the (superset) box covers.
-    pub bins: u32,
-}
-
-impl BoxSummary {
-    const EMPTY: BoxSummary = BoxSummary {
-        near: f64::INFINITY,
-        far: f64::NEG_INFINITY,
-        origin: 0.0,
-        filled: 0,
-        bins: 0,
-    };
-
-    fn add(&mut self, other: &BoxSummary) {
-        self.near = self.near.min(other.near);
-        self.far = self.far.max(other.far);
-        self.origin = self.origin.max(other.origin);
-        self.filled += other.filled;
-        self.bins += other.bins;
     }
 }
 
@@ -182,14 +147,6 @@ impl Clone for GridBuffers {
     }
 }
 
-/// The first pyramid level where `span` bins fall in at most two tiles per
-/// axis: the least `l` with `span >> l ≤ 2`, i.e. `span < 3 · 2^l`, i.e.
-/// `⌊span / 3⌋ < 2^l`, the bit length of `⌊span / 3⌋`.
-#[inline]
-fn query_level(span: usize) -> usize {
-    (usize::BITS - (span / 3).leading_zeros()) as usize
-}
-
 /// A filled local grid.
 #[derive(Clone, Debug)]
 pub struct LocalGrid {
@@ -223,13 +180,6 @@ pub struct LocalGrid {
     sample_inverse: Vec<Vector3>,
     /// The working arrays the grid was built with, kept for the next.
     spare: GridBuffers,
-}
-
-/// One level of the pyramid over the angular bins.
-#[derive(Clone, Debug)]
-struct Level {
-    dims: [usize; 2],
-    cells: Vec<BoxSummary>,
 }
 
 impl LocalGrid {
@@ -550,108 +500,17 @@ impl LocalGrid {
         self.surfaces = surfaces;
         self.spare.own = own;
     }
-
-    /// The pyramid, its levels' cells in the memory of `reuse`.
-    fn build_pyramid(&mut self, reuse: Vec<Vec<BoxSummary>>) {
-        let mut reuse = reuse.into_iter();
-        let mut dims = [self.azimuth.count, self.elevation.count];
-        let mut cells = reuse.next().unwrap_or_default();
-        per_bin_into(&mut cells, (dims[0], dims[1]), BoxSummary::EMPTY, |a, e| {
-            let mut s = BoxSummary::EMPTY;
-            let (beams, _) = self.bin_beams(a, e);
-            for b in beams {
-                s.near = s.near.min(b.band_start(self.max_range));
-                s.far = s.far.max(b.reach(self.max_range));
-                s.origin = s.origin.max(TAIL * b.sigma_origin);
-            }
-            if let Some(surface) = self.bin_surface(a, e) {
-                s.near = s.near.min(surface.band_start(self.max_range));
-            }
-            s.filled = u32::from(!beams.is_empty());
-            s.bins = 1;
-            s
-        });
-        self.levels = vec![Level { dims, cells }];
-        while dims.iter().any(|&d| d > 1) {
-            dims = dims.map(|d| d.div_ceil(2));
-            self.levels.push(Level {
-                dims,
-                cells: reuse.next().unwrap_or_default(),
-            });
-        }
-        self.aggregate_levels();
-    }
-
-    /// Levels 1 and up from level 0: each tile aggregates its (up to) 2 × 2
-    /// cells of the level below.
-    fn aggregate_levels(&mut self) {
-        for level in 1..self.levels.len() {
-            let (below, above) = self.levels.split_at_mut(level);
-            let (prev, next) = (&below[level - 1], &mut above[0]);
-            let dims = prev.dims;
-            per_bin_into(
-                &mut next.cells,
-                (next.dims[0], next.dims[1]),
-                BoxSummary::EMPTY,
-                |ta, te| {
-                    let mut s = BoxSummary::EMPTY;
-                    for a in 2 * ta..(2 * ta + 2).min(dims[0]) {
-                        for e in 2 * te..(2 * te + 2).min(dims[1]) {
-                            s.add(&prev.cells[a * dims[1] + e]);
-                        }
-                    }
-                    s
-                },
-            );
-        }
-    }
-
-    /// The pyramid level of tiles of `2^level` × `2^level` bins, or the
-    /// coarsest there is.
-    pub fn tile_level(&self, level: usize) -> usize {
-        level.min(self.levels.len().saturating_sub(1))
-    }
-
-    /// The aggregate over the tile `(ta, te)` of [`LocalGrid::tile_level`]
-    /// `level`: bins `ta·2^level ..` by `te·2^level ..`.
-    #[inline]
-    pub fn tile_summary(&self, level: usize, ta: usize, te: usize) -> &BoxSummary {
-        let l = &self.levels[level];
-        &l.cells[ta * l.dims[1] + te]
-    }
-
-    /// The aggregate over a superset of the bins `[a0..=a1] x [e0..=e1]`: the
-    /// coarsest pyramid level where the box spans at most two cells per axis.
-    pub fn query(&self, a: (usize, usize), e: (usize, usize)) -> BoxSummary {
-        let span = (a.1 - a.0).max(e.1 - e.0) + 1;
-        let level = query_level(span).min(self.levels.len() - 1);
-        let l = &self.levels[level];
-        let mut out = BoxSummary::EMPTY;
-        for aa in a.0 >> level..=a.1 >> level {
-            for ee in e.0 >> level..=e.1 >> level {
-                out.add(&l.cells[aa * l.dims[1] + ee]);
-            }
-        }
-        out
-    }
-
-    /// The largest range at which any beam carries information.
-    pub fn reach(&self) -> f64 {
-        self.levels.last().map_or(f64::NEG_INFINITY, |l| {
-            l.cells
-                .iter()
-                .map(|c| c.far)
-                .fold(f64::NEG_INFINITY, f64::max)
-        })
-    }
 }
 
 mod lookup;
 mod nominal;
+mod pyramid;
 mod samples;
 mod tangent;
 
 pub use nominal::NominalBins;
+pub use pyramid::BoxSummary;
+use pyramid::Level;
 pub use samples::SAMPLES_PER_BEAM;
 #[cfg(test)]
 mod tests;

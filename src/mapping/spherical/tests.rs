@@ -1,4 +1,5 @@
 use super::*;
+use crate::mapping::chord::TAIL;
 use rand::{Rng, SeedableRng};
 
 /// A grid of random beams (some bins empty, some with several beams).
@@ -226,7 +227,7 @@ fn the_query_level_is_the_first_with_at_most_two_tiles_a_side() {
         while (span >> level) > 2 {
             level += 1;
         }
-        assert_eq!(super::query_level(span), level, "span {span}");
+        assert_eq!(super::pyramid::query_level(span), level, "span {span}");
     }
 }
 
