@@ -13,91 +13,16 @@
 use crate::geometry::{floor, Point3};
 
 mod key;
+mod limits;
+mod log_odds;
 pub use key::Key;
+pub use limits::{check_cells, check_span, MAX_WORKSPACE_CELLS, RESOLUTIONS};
+pub use log_odds::{logodds, Clamp, LOG_ODDS_HIT, LOG_ODDS_MISS};
 
 /// Depth of the finest level.
 pub const DEPTH: u8 = 16;
 pub(crate) const CENTER: i64 = 1 << 15;
 const NO_CHILDREN: u32 = u32::MAX;
-
-/// How log-odds are bounded after an update (docs/math.md §4.6).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Clamp {
-    /// Lower bound (OctoMap: −2.0, p = 0.1192).
-    pub min: f32,
-    /// Upper bound (OctoMap: +3.5, p = 0.971).
-    pub max: f32,
-}
-
-/// `ln(p / (1 − p))` in `f32`, as OctoMap computes its parameters.
-pub fn logodds(p: f64) -> f32 {
-    (p / (1.0 - p)).ln() as f32
-}
-
-/// Checks that points up to `reach` metres from the origin (on any axis),
-/// plus one cell of grid offset, fit in a tree of this resolution (±32768
-/// cells around the origin).
-pub fn check_span(reach: f64, resolution: f64) -> Result<(), String> {
-    if reach.is_finite() && reach + resolution < (CENTER - 1) as f64 * resolution {
-        return Ok(());
-    }
-    Err(format!(
-        "the workspace reaches {reach} m from the scene origin; at resolution {resolution} m \
-         the map spans only ±{} m (use a coarser resolution or a smaller workspace)",
-        (CENTER - 1) as f64 * resolution
-    ))
-}
-
-/// Most cells a workspace may hold at the map's resolution (the ground
-/// truth and the observable mask walk them: about 2 minutes at 2³¹).
-pub const MAX_WORKSPACE_CELLS: f64 = 2_147_483_648.0;
-
-/// The finest voxel edges sigmap maps at (m).
-pub const RESOLUTIONS: std::ops::RangeInclusive<f64> = 0.001..=1.0;
-
-/// Checks that a workspace of `extent` metres per axis holds at most
-/// [`MAX_WORKSPACE_CELLS`] cells of edge `resolution`.
-pub fn check_cells(extent: [f64; 3], resolution: f64) -> Result<(), String> {
-    let cells: f64 = extent.iter().map(|e| (e / resolution).ceil()).product();
-    if cells <= MAX_WORKSPACE_CELLS {
-        return Ok(());
-    }
-    Err(format!(
-        "the workspace holds {cells:.3e} cells of {resolution} m; sigmap handles at most \
-         {MAX_WORKSPACE_CELLS:.3e} (use a coarser resolution or a smaller workspace)"
-    ))
-}
-
-/// OctoMap's hit update, `logodds(0.7)` = 0.8473 (docs/math.md §4.2), bit-exact.
-pub const LOG_ODDS_HIT: f32 = f32::from_bits(0x3f58_e883);
-/// OctoMap's miss update, `logodds(0.4)` = −0.4055, bit-exact.
-pub const LOG_ODDS_MISS: f32 = f32::from_bits(0xbecf_991f);
-
-impl Default for Clamp {
-    /// OctoMap's clamp.
-    fn default() -> Self {
-        Clamp::OCTOMAP
-    }
-}
-
-impl Clamp {
-    /// OctoMap's defaults, `[logodds(0.1192), logodds(0.971)]` = [−2.00003, 3.51103]:
-    /// the values its `.bt` reader gives free and occupied leaves.
-    pub const OCTOMAP: Clamp = Clamp {
-        min: f32::from_bits(0xc000_0075),
-        max: f32::from_bits(0x4060_b4ba),
-    };
-    /// No map-level clamp (the paper's mode; per-value clamping happens in the OPDF).
-    pub const NONE: Clamp = Clamp {
-        min: f32::NEG_INFINITY,
-        max: f32::INFINITY,
-    };
-
-    #[inline]
-    pub fn apply(&self, v: f32) -> f32 {
-        v.clamp(self.min, self.max)
-    }
-}
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Node {
