@@ -105,22 +105,18 @@ const LEFT_OUT: Beam = Beam {
 };
 
 /// `f(a, e)` for every bin of an `na` × `ne` grid into `out`, row by row
-/// (`a` major), the rows in parallel; `out`'s memory is reused.
-fn per_bin_into<T: Copy + Send + Sync>(
+/// (`a` major), in parallel; `out`'s memory is reused, each bin written once
+/// (no fill beforehand: on grids of megabytes the fill costs as much as the
+/// bins' own work).
+fn per_bin_into<T: Send>(
     out: &mut Vec<T>,
     (na, ne): (usize, usize),
-    fill: T,
-    f: impl Fn(usize, usize) -> T + Sync,
+    f: impl Fn(usize, usize) -> T + Sync + Send,
 ) {
-    out.clear();
-    out.resize(na * ne, fill);
-    out.par_chunks_mut(ne.max(1))
-        .enumerate()
-        .for_each(|(a, row)| {
-            for (e, slot) in row.iter_mut().enumerate() {
-                *slot = f(a, e);
-            }
-        });
+    (0..na * ne)
+        .into_par_iter()
+        .map(|i| f(i / ne, i % ne))
+        .collect_into_vec(out);
 }
 
 /// The memory of a local grid, its working arrays included, to build the
@@ -264,7 +260,7 @@ impl LocalGrid {
             mut unbinned,
             mut next,
             mut sorted,
-            own,
+            mut own,
             mut offsets,
             mut beams,
             mut inverse,
@@ -353,7 +349,6 @@ impl LocalGrid {
             unbinned,
             next,
             sorted,
-            own,
             ..GridBuffers::default()
         };
         let mut grid = Self {
@@ -373,8 +368,11 @@ impl LocalGrid {
             sample_inverse: Vec::new(),
             spare,
         };
-        grid.build_surfaces();
-        grid.build_pyramid(levels);
+        let mut levels = levels.into_iter();
+        let mut level0 = levels.next().unwrap_or_default();
+        grid.build_surfaces_and_level0(&mut own, &mut level0);
+        grid.spare.own = own;
+        grid.build_pyramid(level0, levels);
         grid
     }
 
@@ -424,85 +422,10 @@ impl LocalGrid {
     pub fn bin_surface(&self, a: usize, e: usize) -> Option<&Surface> {
         self.surfaces[a * self.elevation.count + e].as_ref()
     }
-
-    /// Each bin's nearest surface: the closest of its own beams, pulled to
-    /// half-way towards any nearer neighbour (the surface between two beams
-    /// is taken as linear in angle), or to a returning neighbour's range when
-    /// the bin's own beams all had no return (a silhouette against nothing);
-    /// its σ is the largest of the beams involved.
-    fn build_surfaces(&mut self) {
-        let (na, ne) = (self.azimuth.count, self.elevation.count);
-        // An empty bin's entry never lowers a neighbour's range (its range is
-        // +∞, like a no-return bin's); whether the bin itself is empty is
-        // read from `offsets`.
-        const NOTHING: Surface = Surface {
-            range: f64::INFINITY,
-            sigma: 0.0,
-            sigma_origin: 0.0,
-        };
-        let mut own = std::mem::take(&mut self.spare.own);
-        per_bin_into(&mut own, (na, ne), NOTHING, |a, e| {
-            let (beams, _) = self.bin_beams(a, e);
-            beams
-                .iter()
-                .map(Beam::surface)
-                .reduce(|best, b| Surface {
-                    range: if b.range < best.range {
-                        b.range
-                    } else {
-                        best.range
-                    },
-                    sigma: best.sigma.max(b.sigma),
-                    sigma_origin: best.sigma_origin.max(b.sigma_origin),
-                })
-                .unwrap_or(NOTHING)
-        });
-        let mut surfaces = std::mem::take(&mut self.surfaces);
-        per_bin_into(&mut surfaces, (na, ne), None, |a, e| {
-            let i = a * ne + e;
-            if self.offsets[i] == self.offsets[i + 1] {
-                return None;
-            }
-            let mut surface = own[i];
-            let base = surface.range;
-            let finite = base.is_finite();
-            // Selects, not a branch: whether a neighbour is nearer is a coin
-            // toss on a smooth surface.
-            let mut lower = |other: &Surface| {
-                let bound = if finite {
-                    0.5 * (base + other.range)
-                } else {
-                    other.range
-                };
-                let nearer = bound < surface.range;
-                let sigma = surface.sigma.max(other.sigma);
-                surface.range = if nearer { bound } else { surface.range };
-                surface.sigma = if nearer { sigma } else { surface.sigma };
-            };
-            // The 3 x 3 neighbourhood, in the same order at the border; the
-            // bin itself never lowers `base`. Inside, rows of three known
-            // to the compiler.
-            if a > 0 && a + 1 < na && e > 0 && e + 1 < ne {
-                for x in [a - 1, a, a + 1] {
-                    let start = x * ne + e - 1;
-                    let row: &[Surface; 3] = own[start..start + 3].try_into().expect("three bins");
-                    row.iter().for_each(&mut lower);
-                }
-            } else {
-                for x in a.saturating_sub(1)..(a + 2).min(na) {
-                    own[x * ne + e.saturating_sub(1)..x * ne + (e + 2).min(ne)]
-                        .iter()
-                        .for_each(&mut lower);
-                }
-            }
-            Some(surface)
-        });
-        self.surfaces = surfaces;
-        self.spare.own = own;
-    }
 }
 
 mod lookup;
+mod nearest;
 mod nominal;
 mod pyramid;
 mod samples;

@@ -3,7 +3,6 @@
 //! for its beams' range extent in at most four reads.
 
 use super::{per_bin_into, LocalGrid};
-use crate::mapping::chord::TAIL;
 
 /// Aggregate of the beams of a box of angular bins.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -59,26 +58,14 @@ pub(super) struct Level {
 }
 
 impl LocalGrid {
-    /// The pyramid, its levels' cells in the memory of `reuse`.
-    pub(super) fn build_pyramid(&mut self, reuse: Vec<Vec<BoxSummary>>) {
-        let mut reuse = reuse.into_iter();
+    /// The pyramid over `level0` (the bins' own summaries, row by row), its
+    /// coarser levels' cells in the memory of `reuse`.
+    pub(super) fn build_pyramid(
+        &mut self,
+        cells: Vec<BoxSummary>,
+        mut reuse: impl Iterator<Item = Vec<BoxSummary>>,
+    ) {
         let mut dims = [self.azimuth.count, self.elevation.count];
-        let mut cells = reuse.next().unwrap_or_default();
-        per_bin_into(&mut cells, (dims[0], dims[1]), BoxSummary::EMPTY, |a, e| {
-            let mut s = BoxSummary::EMPTY;
-            let (beams, _) = self.bin_beams(a, e);
-            for b in beams {
-                s.near = s.near.min(b.band_start(self.max_range));
-                s.far = s.far.max(b.reach(self.max_range));
-                s.origin = s.origin.max(TAIL * b.sigma_origin);
-            }
-            if let Some(surface) = self.bin_surface(a, e) {
-                s.near = s.near.min(surface.band_start(self.max_range));
-            }
-            s.filled = u32::from(!beams.is_empty());
-            s.bins = 1;
-            s
-        });
         self.levels = vec![Level { dims, cells }];
         while dims.iter().any(|&d| d > 1) {
             dims = dims.map(|d| d.div_ceil(2));
@@ -97,20 +84,15 @@ impl LocalGrid {
             let (below, above) = self.levels.split_at_mut(level);
             let (prev, next) = (&below[level - 1], &mut above[0]);
             let dims = prev.dims;
-            per_bin_into(
-                &mut next.cells,
-                (next.dims[0], next.dims[1]),
-                BoxSummary::EMPTY,
-                |ta, te| {
-                    let mut s = BoxSummary::EMPTY;
-                    for a in 2 * ta..(2 * ta + 2).min(dims[0]) {
-                        for e in 2 * te..(2 * te + 2).min(dims[1]) {
-                            s.add(&prev.cells[a * dims[1] + e]);
-                        }
+            per_bin_into(&mut next.cells, (next.dims[0], next.dims[1]), |ta, te| {
+                let mut s = BoxSummary::EMPTY;
+                for a in 2 * ta..(2 * ta + 2).min(dims[0]) {
+                    for e in 2 * te..(2 * te + 2).min(dims[1]) {
+                        s.add(&prev.cells[a * dims[1] + e]);
                     }
-                    s
-                },
-            );
+                }
+                s
+            });
         }
     }
 

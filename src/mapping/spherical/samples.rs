@@ -61,9 +61,7 @@ impl LocalGrid {
     pub fn add_surface_samples(&mut self) {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
         let mut planar = Vec::new();
-        super::per_bin_into(&mut planar, (na, ne), false, |a, e| {
-            self.window_on_one_plane(a, e)
-        });
+        super::per_bin_into(&mut planar, (na, ne), |a, e| self.window_on_one_plane(a, e));
         let sampled = |a: usize, e: usize| {
             a + 1 < na
                 && e + 1 < ne
