@@ -336,14 +336,14 @@ impl LocalGrid {
                 *slot += 1;
             }
         }
+        // The beams in bin order, each with its inverse direction.
         sorted
             .par_iter()
-            .map(|&i| unbinned[i as usize])
-            .collect_into_vec(&mut beams);
-        beams
-            .par_iter()
-            .map(|b| b.direction.map(|c| 1.0 / c))
-            .collect_into_vec(&mut inverse);
+            .map(|&i| {
+                let beam = unbinned[i as usize];
+                (beam, beam.direction.map(|c| 1.0 / c))
+            })
+            .unzip_into_vecs(&mut beams, &mut inverse);
         let spare = GridBuffers {
             bin_of,
             unbinned,
