@@ -142,3 +142,44 @@ fn sweep_cells_and_overrides() {
             < 1e-18
     );
 }
+
+/// What an experiment file may leave out takes the defaults README.md
+/// documents ("Experiment file").
+#[test]
+fn a_minimal_file_takes_the_documented_defaults() {
+    let text = r#"
+        scene = "s.toml"
+        error_profile = "p.toml"
+        [robot]
+        urdf = "r.urdf"
+        flange_link = "tool0"
+        [sensor]
+        horizontal_fov_deg = 50.0
+        horizontal_step_deg = 0.5
+        min_range = 0.1
+        max_range = 2.0
+    "#;
+    let file: super::file::ExperimentFile = toml::from_str(text).unwrap();
+    assert_eq!(file.name, None);
+    assert_eq!(file.description, "");
+    assert_eq!(file.seed, 1);
+    assert_eq!(file.resolution, 0.01);
+    assert_eq!(file.risk, None);
+    assert!(!file.grid_offset);
+    assert_eq!(file.beam_pooling.pooling(), Ok(Pooling::Off));
+    assert_eq!(file.interpolate_beams.on("interpolate_beams"), Ok(false));
+    assert!(file.unscented.is_none() && file.seeds.is_none() && file.methods.is_none());
+    assert_eq!(file.robot.base_link, "base_link");
+    assert_eq!(file.robot.sensor_link, "laser");
+    assert_eq!((file.robot.xyz, file.robot.rpy), ([0.0; 3], [0.0; 3]));
+    assert_eq!(
+        (file.world_from_scene.xyz, file.world_from_scene.rpy),
+        ([0.0; 3], [0.0; 3])
+    );
+    assert!(file.viewpoints.is_empty() && file.sweeps.is_empty());
+    assert_eq!(file.sensor.vertical_fov_deg, 0.0);
+    assert_eq!(file.sensor.vertical_step_deg, None);
+    // The scaled sigma-point set's defaults: β = 2, κ = 0.
+    let scaled: super::file::ScaledSetSpec = toml::from_str("alpha = 0.5").unwrap();
+    assert_eq!((scaled.beta, scaled.kappa), (2.0, 0.0));
+}
