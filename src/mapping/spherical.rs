@@ -104,8 +104,9 @@ const LEFT_OUT: Beam = Beam {
     sigma_origin: 0.0,
 };
 
-/// `f(a, e)` for every bin of an `na` × `ne` grid into `out`, row by row
-/// (`a` major), in parallel; `out`'s memory is reused, each bin written once
+/// `f(a, e)` for every bin of an `na` × `ne` grid into `out`, row by row in
+/// elevation (`e` major: bin `e · na + a`, as the grid lays its bins), in
+/// parallel; `out`'s memory is reused, each bin written once
 /// (no fill beforehand: on grids of megabytes the fill costs as much as the
 /// bins' own work).
 fn per_bin_into<T: Send>(
@@ -115,7 +116,7 @@ fn per_bin_into<T: Send>(
 ) {
     (0..na * ne)
         .into_par_iter()
-        .map(|i| f(i / ne, i % ne))
+        .map(|i| f(i % na, i / na))
         .collect_into_vec(out);
 }
 
@@ -160,7 +161,9 @@ pub struct LocalGrid {
     slack: [f64; 2],
     /// The azimuth and elevation bins by the tangent of their angles.
     tangents: [TangentBins; 2],
-    /// Beams of bin `i = a · elevation.count + e`: `beams[offsets[i]..offsets[i+1]]`.
+    /// Beams of bin `i = e · azimuth.count + a`: `beams[offsets[i]..offsets[i+1]]`
+    /// (the bins row by row in elevation, the raster's order, so that a
+    /// scan's beams land in bin order nearly as they come).
     offsets: Vec<u32>,
     beams: Vec<Beam>,
     /// Componentwise inverse of each beam's direction (for ray/box chords).
@@ -302,7 +305,7 @@ impl LocalGrid {
                         ) else {
                             return left_out;
                         };
-                        (a * elevation.count + e) as u32
+                        (e * azimuth.count + a) as u32
                     }
                 };
                 let beam = Beam {
@@ -402,7 +405,7 @@ impl LocalGrid {
     /// The beams of angular bin `(a, e)` with their inverse directions.
     #[inline]
     pub fn bin_beams(&self, a: usize, e: usize) -> (&[Beam], &[Vector3]) {
-        let i = a * self.elevation.count + e;
+        let i = e * self.azimuth.count + a;
         let (lo, hi) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
         (&self.beams[lo..hi], &self.inverse[lo..hi])
     }
@@ -410,7 +413,7 @@ impl LocalGrid {
     /// The aggregate of bin `(a, e)`'s own beams (the pyramid's level 0).
     #[inline]
     pub fn bin_summary(&self, a: usize, e: usize) -> &BoxSummary {
-        &self.levels[0].cells[a * self.elevation.count + e]
+        &self.levels[0].cells[e * self.azimuth.count + a]
     }
 
     /// The nearest surface of bin `(a, e)`: a beam of the bin's own, but at
@@ -420,7 +423,7 @@ impl LocalGrid {
     /// bin (nothing is known there).
     #[inline]
     pub fn bin_surface(&self, a: usize, e: usize) -> Option<&Surface> {
-        self.surfaces[a * self.elevation.count + e].as_ref()
+        self.surfaces[e * self.azimuth.count + a].as_ref()
     }
 }
 

@@ -26,8 +26,8 @@ impl LocalGrid {
     /// half-way towards any nearer neighbour (the surface between two beams
     /// taken as linear in angle), or to a returning neighbour's range when
     /// the bin's own beams all had no return (a silhouette against nothing);
-    /// its σ grows to the widest of each neighbour that lowers the range, in
-    /// row order. `None`: an empty bin.
+    /// its σ grows to the widest of each neighbour that lowers the range, the
+    /// neighbours taken azimuth by azimuth. `None`: an empty bin.
     pub(super) fn build_surfaces_and_level0(
         &mut self,
         own: &mut Vec<Surface>,
@@ -76,7 +76,7 @@ impl LocalGrid {
                 if self.offsets[i] == self.offsets[i + 1] {
                     return None;
                 }
-                let (a, e) = (i / ne, i % ne);
+                let (a, e) = (i % na, i / na);
                 let surface = pulled(own, (na, ne), a, e);
                 cell.near = cell.near.min(surface.band_start(max_range));
                 Some(surface)
@@ -86,11 +86,11 @@ impl LocalGrid {
     }
 }
 
-/// Bin `(a, e)`'s own surface pulled by its 3 × 3 neighbourhood, in row
-/// order (clipped at the grid's border; the bin itself never lowers it).
+/// Bin `(a, e)`'s own surface pulled by its 3 × 3 neighbourhood, azimuth
+/// by azimuth and within each by elevation (clipped at the grid's border; the bin itself never lowers it).
 #[inline]
 fn pulled(own: &[Surface], (na, ne): (usize, usize), a: usize, e: usize) -> Surface {
-    let mut surface = own[a * ne + e];
+    let mut surface = own[e * na + a];
     let base = surface.range;
     let finite = base.is_finite();
     // Selects, not a branch: whether a neighbour is nearer is a coin toss
@@ -107,17 +107,22 @@ fn pulled(own: &[Surface], (na, ne): (usize, usize), a: usize, e: usize) -> Surf
         surface.sigma = if nearer { sigma } else { surface.sigma };
     };
     if a > 0 && a + 1 < na && e > 0 && e + 1 < ne {
-        // Inside: rows of three known to the compiler.
-        for x in [a - 1, a, a + 1] {
-            let start = x * ne + e - 1;
-            let row: &[Surface; 3] = own[start..start + 3].try_into().expect("three bins");
-            row.iter().for_each(&mut lower);
+        // Inside: three rows of three known to the compiler (bins lie row by
+        // row in elevation: `(x, y)` at `y · na + x`).
+        let rows: [&[Surface; 3]; 3] = std::array::from_fn(|dy| {
+            let start = (e + dy - 1) * na + a - 1;
+            own[start..start + 3].try_into().expect("three bins")
+        });
+        for dx in 0..3 {
+            for row in rows {
+                lower(&row[dx]);
+            }
         }
     } else {
         for x in a.saturating_sub(1)..(a + 2).min(na) {
-            own[x * ne + e.saturating_sub(1)..x * ne + (e + 2).min(ne)]
-                .iter()
-                .for_each(&mut lower);
+            for y in e.saturating_sub(1)..(e + 2).min(ne) {
+                lower(&own[y * na + x]);
+            }
         }
     }
     surface

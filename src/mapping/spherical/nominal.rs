@@ -66,7 +66,7 @@ impl<'a> NominalBins<'a> {
         let tangents = [TangentBins::new(&azimuth), TangentBins::new(&elevation)];
         let entries = directions
             .par_iter()
-            .map(|d| entry(&(grid_from_input * d), &tangents, elevation.count))
+            .map(|d| entry(&(grid_from_input * d), &tangents, azimuth.count))
             .collect();
         Self {
             azimuth,
@@ -82,7 +82,7 @@ impl<'a> NominalBins<'a> {
         self.azimuth == *azimuth && self.elevation == *elevation
     }
 
-    /// The bin (`azimuth index × elevation count + elevation index`) of beam
+    /// The bin (`elevation index × azimuth count + azimuth index`) of beam
     /// `i`'s direction `v` (grid frame, unit) when `v` lies close enough to
     /// the beam's nominal direction for the bin to be the same; `None`
     /// (undecided) otherwise.
@@ -96,7 +96,7 @@ impl<'a> NominalBins<'a> {
 
 /// The entry of the unit direction `d`, from the tangents of its angles
 /// (no angle is computed: see [`TangentBins::locate_with_clearance`]).
-fn entry(d: &Vector3, tangents: &[TangentBins; 2], elevation_count: usize) -> Entry {
+fn entry(d: &Vector3, tangents: &[TangentBins; 2], azimuth_count: usize) -> Entry {
     // Unit to rounding, and in front (the tangent tables' half-space).
     if !((d.norm_squared() - 1.0).abs() < 1e-12 && d.x > 0.0) {
         return NONE;
@@ -119,7 +119,7 @@ fn entry(d: &Vector3, tangents: &[TangentBins; 2], elevation_count: usize) -> En
     let theta = c_el.min(c_az * cos_top) * (1.0 - 1e-6);
     // The chord 2 sin(θ/2) ≥ θ (1 − θ²/24).
     let chord = theta * (1.0 - theta * theta / 24.0);
-    match u32::try_from(a * elevation_count + e) {
+    match u32::try_from(e * azimuth_count + a) {
         // In f32, less a millionth (more than its rounding).
         Ok(bin) if bin != u32::MAX => Entry {
             reach2: (chord * chord * (1.0 - 1e-6)) as f32,
@@ -183,7 +183,7 @@ mod tests {
         let tangents = [TangentBins::new(&azimuth), TangentBins::new(&elevation)];
         let full = |v: &Vector3| {
             direction_bin([&azimuth, &elevation], slack, &tangents, v)
-                .map(|(a, e)| (a * elevation.count + e) as u32)
+                .map(|(a, e)| (e * azimuth.count + a) as u32)
         };
         let (mut decided, mut near_edge) = (0, 0);
         for (i, d) in directions.iter().enumerate() {

@@ -53,7 +53,10 @@ pub(super) fn query_level(span: usize) -> usize {
 /// One level of the pyramid over the angular bins.
 #[derive(Clone, Debug)]
 pub(super) struct Level {
+    /// Tiles along azimuth and elevation.
     pub(super) dims: [usize; 2],
+    /// Tile `(ta, te)` at `te · dims[0] + ta`: row by row in elevation, as
+    /// the grid lays its bins.
     pub(super) cells: Vec<BoxSummary>,
 }
 
@@ -88,7 +91,7 @@ impl LocalGrid {
                 let mut s = BoxSummary::EMPTY;
                 for a in 2 * ta..(2 * ta + 2).min(dims[0]) {
                     for e in 2 * te..(2 * te + 2).min(dims[1]) {
-                        s.add(&prev.cells[a * dims[1] + e]);
+                        s.add(&prev.cells[e * dims[0] + a]);
                     }
                 }
                 s
@@ -107,7 +110,7 @@ impl LocalGrid {
     #[inline]
     pub fn tile_summary(&self, level: usize, ta: usize, te: usize) -> &BoxSummary {
         let l = &self.levels[level];
-        &l.cells[ta * l.dims[1] + te]
+        &l.cells[te * l.dims[0] + ta]
     }
 
     /// The aggregate over a superset of the bins `[a0..=a1] x [e0..=e1]`: the
@@ -119,7 +122,7 @@ impl LocalGrid {
         let mut out = BoxSummary::EMPTY;
         for aa in a.0 >> level..=a.1 >> level {
             for ee in e.0 >> level..=e.1 >> level {
-                out.add(&l.cells[aa * l.dims[1] + ee]);
+                out.add(&l.cells[ee * l.dims[0] + aa]);
             }
         }
         out

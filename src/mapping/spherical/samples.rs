@@ -65,10 +65,10 @@ impl LocalGrid {
         let sampled = |a: usize, e: usize| {
             a + 1 < na
                 && e + 1 < ne
-                && (planar[a * ne + e]
-                    || planar[(a + 1) * ne + e]
-                    || planar[a * ne + e + 1]
-                    || planar[(a + 1) * ne + e + 1])
+                && (planar[e * na + a]
+                    || planar[e * na + a + 1]
+                    || planar[(e + 1) * na + a]
+                    || planar[(e + 1) * na + a + 1])
         };
         let rows: Vec<Vec<(usize, Beam)>> = (0..na.saturating_sub(1))
             .into_par_iter()
@@ -139,7 +139,7 @@ impl LocalGrid {
                     sigma_origin: blend(&|b| b.sigma_origin),
                 };
                 if let Some((sa, se)) = self.bin_of(&(self.origin + direction)) {
-                    out.push((sa * self.elevation.count + se, sample));
+                    out.push((se * self.azimuth.count + sa, sample));
                 }
             }
         }
