@@ -104,9 +104,22 @@ const LEFT_OUT: Beam = Beam {
     sigma_origin: 0.0,
 };
 
-/// `f(a, e)` for every bin of an `na` × `ne` grid into `out`, row by row in
-/// elevation (`e` major: bin `e · na + a`, as the grid lays its bins), in
-/// parallel; `out`'s memory is reused, each bin written once
+/// Where bin `(a, e)` lies on a grid (or pyramid level) `na` bins wide in
+/// azimuth: row by row in elevation, the raster's order, so that a scan's
+/// beams land in bin order nearly as they come.
+#[inline]
+pub(super) fn bin_index(na: usize, a: usize, e: usize) -> usize {
+    e * na + a
+}
+
+/// The bin `(a, e)` at [`bin_index`] `i` of a grid `na` bins wide.
+#[inline]
+fn bin_at_index(na: usize, i: usize) -> (usize, usize) {
+    (i % na, i / na)
+}
+
+/// `f(a, e)` for every bin of an `na` × `ne` grid into `out`, in
+/// [`bin_index`] order, in parallel; `out`'s memory is reused, each bin written once
 /// (no fill beforehand: on grids of megabytes the fill costs as much as the
 /// bins' own work).
 fn per_bin_into<T: Send>(
@@ -116,7 +129,10 @@ fn per_bin_into<T: Send>(
 ) {
     (0..na * ne)
         .into_par_iter()
-        .map(|i| f(i % na, i / na))
+        .map(|i| {
+            let (a, e) = bin_at_index(na, i);
+            f(a, e)
+        })
         .collect_into_vec(out);
 }
 
@@ -161,9 +177,7 @@ pub struct LocalGrid {
     slack: [f64; 2],
     /// The azimuth and elevation bins by the tangent of their angles.
     tangents: [TangentBins; 2],
-    /// Beams of bin `i = e · azimuth.count + a`: `beams[offsets[i]..offsets[i+1]]`
-    /// (the bins row by row in elevation, the raster's order, so that a
-    /// scan's beams land in bin order nearly as they come).
+    /// Beams of bin `i` ([`bin_index`]): `beams[offsets[i]..offsets[i+1]]`.
     offsets: Vec<u32>,
     beams: Vec<Beam>,
     /// Componentwise inverse of each beam's direction (for ray/box chords).
@@ -305,7 +319,7 @@ impl LocalGrid {
                         ) else {
                             return left_out;
                         };
-                        (e * azimuth.count + a) as u32
+                        bin_index(azimuth.count, a, e) as u32
                     }
                 };
                 let beam = Beam {
@@ -405,7 +419,7 @@ impl LocalGrid {
     /// The beams of angular bin `(a, e)` with their inverse directions.
     #[inline]
     pub fn bin_beams(&self, a: usize, e: usize) -> (&[Beam], &[Vector3]) {
-        let i = e * self.azimuth.count + a;
+        let i = bin_index(self.azimuth.count, a, e);
         let (lo, hi) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
         (&self.beams[lo..hi], &self.inverse[lo..hi])
     }
@@ -413,7 +427,7 @@ impl LocalGrid {
     /// The aggregate of bin `(a, e)`'s own beams (the pyramid's level 0).
     #[inline]
     pub fn bin_summary(&self, a: usize, e: usize) -> &BoxSummary {
-        &self.levels[0].cells[e * self.azimuth.count + a]
+        &self.levels[0].cells[bin_index(self.azimuth.count, a, e)]
     }
 
     /// The nearest surface of bin `(a, e)`: a beam of the bin's own, but at
@@ -423,7 +437,7 @@ impl LocalGrid {
     /// bin (nothing is known there).
     #[inline]
     pub fn bin_surface(&self, a: usize, e: usize) -> Option<&Surface> {
-        self.surfaces[e * self.azimuth.count + a].as_ref()
+        self.surfaces[bin_index(self.azimuth.count, a, e)].as_ref()
     }
 }
 

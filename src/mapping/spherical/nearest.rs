@@ -5,7 +5,7 @@
 //! grid (no fill beforehand).
 
 use super::pyramid::BoxSummary;
-use super::LocalGrid;
+use super::{bin_at_index, bin_index, LocalGrid};
 use crate::mapping::chord::{Surface, TAIL};
 use rayon::prelude::*;
 
@@ -19,7 +19,7 @@ const NOTHING: Surface = Surface {
 
 impl LocalGrid {
     /// The bins' nearest surfaces into `self.surfaces` and the pyramid's
-    /// level 0 into `level0` (`na · ne` cells, row by row), with `own` (each
+    /// level 0 into `level0` (`na · ne` cells, in [`bin_index`] order), with `own` (each
     /// bin's own nearest beam) as working memory.
     ///
     /// The surface of a bin is the closest of its own beams, pulled to
@@ -76,7 +76,7 @@ impl LocalGrid {
                 if self.offsets[i] == self.offsets[i + 1] {
                     return None;
                 }
-                let (a, e) = (i % na, i / na);
+                let (a, e) = bin_at_index(na, i);
                 let surface = pulled(own, (na, ne), a, e);
                 cell.near = cell.near.min(surface.band_start(max_range));
                 Some(surface)
@@ -87,10 +87,11 @@ impl LocalGrid {
 }
 
 /// Bin `(a, e)`'s own surface pulled by its 3 × 3 neighbourhood, azimuth
-/// by azimuth and within each by elevation (clipped at the grid's border; the bin itself never lowers it).
+/// by azimuth and within each by elevation (clipped at the grid's border;
+/// the bin itself never lowers it).
 #[inline]
 fn pulled(own: &[Surface], (na, ne): (usize, usize), a: usize, e: usize) -> Surface {
-    let mut surface = own[e * na + a];
+    let mut surface = own[bin_index(na, a, e)];
     let base = surface.range;
     let finite = base.is_finite();
     // Selects, not a branch: whether a neighbour is nearer is a coin toss
@@ -107,10 +108,10 @@ fn pulled(own: &[Surface], (na, ne): (usize, usize), a: usize, e: usize) -> Surf
         surface.sigma = if nearer { sigma } else { surface.sigma };
     };
     if a > 0 && a + 1 < na && e > 0 && e + 1 < ne {
-        // Inside: three rows of three known to the compiler (bins lie row by
-        // row in elevation: `(x, y)` at `y · na + x`).
+        // Inside: three rows (of elevation) of three bins known to the
+        // compiler.
         let rows: [&[Surface; 3]; 3] = std::array::from_fn(|dy| {
-            let start = (e + dy - 1) * na + a - 1;
+            let start = bin_index(na, a - 1, e + dy - 1);
             own[start..start + 3].try_into().expect("three bins")
         });
         for dx in 0..3 {
@@ -121,7 +122,7 @@ fn pulled(own: &[Surface], (na, ne): (usize, usize), a: usize, e: usize) -> Surf
     } else {
         for x in a.saturating_sub(1)..(a + 2).min(na) {
             for y in e.saturating_sub(1)..(e + 2).min(ne) {
-                lower(&own[y * na + x]);
+                lower(&own[bin_index(na, x, y)]);
             }
         }
     }

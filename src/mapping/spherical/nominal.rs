@@ -18,7 +18,7 @@
 //! beam, once per map.
 
 use super::tangent::TangentBins;
-use super::Axis;
+use super::{bin_index, Axis};
 use crate::geometry::{Matrix3, Vector3};
 use rayon::prelude::*;
 
@@ -82,7 +82,7 @@ impl<'a> NominalBins<'a> {
         self.azimuth == *azimuth && self.elevation == *elevation
     }
 
-    /// The bin (`elevation index × azimuth count + azimuth index`) of beam
+    /// The bin ([`bin_index`]) of beam
     /// `i`'s direction `v` (grid frame, unit) when `v` lies close enough to
     /// the beam's nominal direction for the bin to be the same; `None`
     /// (undecided) otherwise.
@@ -119,7 +119,7 @@ fn entry(d: &Vector3, tangents: &[TangentBins; 2], azimuth_count: usize) -> Entr
     let theta = c_el.min(c_az * cos_top) * (1.0 - 1e-6);
     // The chord 2 sin(θ/2) ≥ θ (1 − θ²/24).
     let chord = theta * (1.0 - theta * theta / 24.0);
-    match u32::try_from(e * azimuth_count + a) {
+    match u32::try_from(bin_index(azimuth_count, a, e)) {
         // In f32, less a millionth (more than its rounding).
         Ok(bin) if bin != u32::MAX => Entry {
             reach2: (chord * chord * (1.0 - 1e-6)) as f32,
@@ -183,7 +183,7 @@ mod tests {
         let tangents = [TangentBins::new(&azimuth), TangentBins::new(&elevation)];
         let full = |v: &Vector3| {
             direction_bin([&azimuth, &elevation], slack, &tangents, v)
-                .map(|(a, e)| (e * azimuth.count + a) as u32)
+                .map(|(a, e)| bin_index(azimuth.count, a, e) as u32)
         };
         let (mut decided, mut near_edge) = (0, 0);
         for (i, d) in directions.iter().enumerate() {

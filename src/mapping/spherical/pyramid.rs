@@ -2,7 +2,7 @@
 //! level k aggregates 2^k × 2^k bins, so that the merge asks any box of bins
 //! for its beams' range extent in at most four reads.
 
-use super::{per_bin_into, LocalGrid};
+use super::{bin_index, per_bin_into, LocalGrid};
 
 /// Aggregate of the beams of a box of angular bins.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,13 +55,13 @@ pub(super) fn query_level(span: usize) -> usize {
 pub(super) struct Level {
     /// Tiles along azimuth and elevation.
     pub(super) dims: [usize; 2],
-    /// Tile `(ta, te)` at `te · dims[0] + ta`: row by row in elevation, as
-    /// the grid lays its bins.
+    /// Tile `(ta, te)` at `bin_index(dims[0], ta, te)`, as the grid lays its
+    /// bins.
     pub(super) cells: Vec<BoxSummary>,
 }
 
 impl LocalGrid {
-    /// The pyramid over `level0` (the bins' own summaries, row by row), its
+    /// The pyramid over `level0` (the bins' own summaries), its
     /// coarser levels' cells in the memory of `reuse`.
     pub(super) fn build_pyramid(
         &mut self,
@@ -91,7 +91,7 @@ impl LocalGrid {
                 let mut s = BoxSummary::EMPTY;
                 for a in 2 * ta..(2 * ta + 2).min(dims[0]) {
                     for e in 2 * te..(2 * te + 2).min(dims[1]) {
-                        s.add(&prev.cells[e * dims[0] + a]);
+                        s.add(&prev.cells[bin_index(dims[0], a, e)]);
                     }
                 }
                 s
@@ -110,7 +110,7 @@ impl LocalGrid {
     #[inline]
     pub fn tile_summary(&self, level: usize, ta: usize, te: usize) -> &BoxSummary {
         let l = &self.levels[level];
-        &l.cells[te * l.dims[0] + ta]
+        &l.cells[bin_index(l.dims[0], ta, te)]
     }
 
     /// The aggregate over a superset of the bins `[a0..=a1] x [e0..=e1]`: the
@@ -122,7 +122,7 @@ impl LocalGrid {
         let mut out = BoxSummary::EMPTY;
         for aa in a.0 >> level..=a.1 >> level {
             for ee in e.0 >> level..=e.1 >> level {
-                out.add(&l.cells[ee * l.dims[0] + aa]);
+                out.add(&l.cells[bin_index(l.dims[0], aa, ee)]);
             }
         }
         out

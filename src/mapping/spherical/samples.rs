@@ -65,10 +65,9 @@ impl LocalGrid {
         let sampled = |a: usize, e: usize| {
             a + 1 < na
                 && e + 1 < ne
-                && (planar[e * na + a]
-                    || planar[e * na + a + 1]
-                    || planar[(e + 1) * na + a]
-                    || planar[(e + 1) * na + a + 1])
+                && [(a, e), (a + 1, e), (a, e + 1), (a + 1, e + 1)]
+                    .iter()
+                    .any(|&(x, y)| planar[super::bin_index(na, x, y)])
         };
         let rows: Vec<Vec<(usize, Beam)>> = (0..na.saturating_sub(1))
             .into_par_iter()
@@ -139,7 +138,7 @@ impl LocalGrid {
                     sigma_origin: blend(&|b| b.sigma_origin),
                 };
                 if let Some((sa, se)) = self.bin_of(&(self.origin + direction)) {
-                    out.push((se * self.azimuth.count + sa, sample));
+                    out.push((super::bin_index(self.azimuth.count, sa, se), sample));
                 }
             }
         }
