@@ -83,6 +83,19 @@ impl Held {
 /// Beams per parallel task.
 const CHUNK: usize = 4096;
 
+/// A packed value no key packs to ([`packed`] uses 48 bits).
+const NO_CELL: u64 = u64::MAX;
+
+/// Slots of the cache of cells known at `p_hi`.
+const FULL_SLOTS: usize = 64;
+
+/// The slot of `cell` in the cache of cells at `p_hi`: the low two bits of
+/// each coordinate, so that a band's neighbourhood never collides.
+#[inline]
+fn full_slot(cell: [i64; 3]) -> usize {
+    ((cell[0] & 3) | (cell[1] & 3) << 2 | (cell[2] & 3) << 4) as usize
+}
+
 /// A finest key packed into one integer.
 #[inline]
 fn packed(key: &Key) -> u64 {
@@ -106,8 +119,9 @@ impl SurfaceCells {
                     .zip(sample_inverse.par_chunks(CHUNK)),
             )
             .fold(FxHashMap::default, |mut cells, (beams, inverse)| {
+                let mut full = [NO_CELL; FULL_SLOTS];
                 for (beam, inv) in beams.iter().zip(inverse) {
-                    band_cells(grid, model, geometry, beam, inv, &mut cells);
+                    band_cells(grid, model, geometry, beam, inv, &mut cells, &mut full);
                 }
                 cells
             })
@@ -144,7 +158,10 @@ impl SurfaceCells {
 
 /// Raises `cells[C]` to `min(h, p_hi)` for each finest cell C whose chord on
 /// `beam` meets its surface band with `h > 0`; a cell already at `p_hi` is
-/// not evaluated again.
+/// not evaluated again. `full` remembers cells found at `p_hi`, one per
+/// [`full_slot`]; values only rise, so a cell remembered stays at `p_hi`, and
+/// the next beams (which mostly reach the same cells) pass it over without a
+/// look into `cells`.
 fn band_cells(
     grid: &LocalGrid,
     model: &CellModel,
@@ -152,6 +169,7 @@ fn band_cells(
     beam: &Beam,
     inverse: &Vector3,
     cells: &mut FxHashMap<u64, Held>,
+    full: &mut [u64; FULL_SLOTS],
 ) {
     if !beam.range.is_finite() {
         return;
@@ -196,8 +214,13 @@ fn band_cells(
                     // Most cells a band reaches are already at p_hi from a
                     // neighbouring beam: look before computing the chord.
                     let packed = packed(&key);
+                    let slot = full_slot(cell);
+                    if full[slot] == packed {
+                        continue;
+                    }
                     let held = cells.get(&packed).copied();
                     if held.is_some_and(|held| held.value >= model.p_hi) {
+                        full[slot] = packed;
                         continue;
                     }
                     let centre = geometry.center(&key, DEPTH).coords;
@@ -211,6 +234,9 @@ fn band_cells(
                     let h = chord_surface(model, beam, a, b, max_range).min(model.p_hi);
                     if h > held.map_or(0.0, |held| held.value) {
                         cells.insert(packed, Held::new(h));
+                        if h >= model.p_hi {
+                            full[slot] = packed;
+                        }
                     }
                 }
             }

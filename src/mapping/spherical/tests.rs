@@ -25,12 +25,14 @@ fn random_grid_in(
     count: usize,
     bins: [usize; 2],
 ) -> LocalGrid {
-    let axis = |count| Axis {
-        start: -0.2,
-        step: 0.01,
-        count,
-    };
-    let ends: Vec<BeamEnd> = (0..count)
+    let ends = random_ends(rng, count);
+    grid_of_ends(buffers, &ends, bins)
+}
+
+/// `count` random beam ends: a tenth without a return, the rest at random
+/// ranges with random σ.
+fn random_ends(rng: &mut impl Rng, count: usize) -> Vec<BeamEnd> {
+    (0..count)
         .map(|_| {
             let direction = random_direction(rng);
             if rng.random_bool(0.1) {
@@ -43,7 +45,17 @@ fn random_grid_in(
                 }
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The grid of `ends` on `bins` (azimuth x elevation) of 0.01 rad from
+/// −0.2 rad, in `buffers`.
+fn grid_of_ends(buffers: GridBuffers, ends: &[BeamEnd], bins: [usize; 2]) -> LocalGrid {
+    let axis = |count| Axis {
+        start: -0.2,
+        step: 0.01,
+        count,
+    };
     let layout = GridLayout {
         origin: Vector3::zeros(),
         scene_from_grid: Matrix3::identity(),
@@ -161,6 +173,45 @@ fn beams_land_in_their_bins_in_input_order() {
         }
     }
     assert_eq!(total, grid.beam_count());
+}
+
+#[test]
+fn ends_already_in_bin_order_make_the_grid_the_sort_makes() {
+    // A scan's beams mostly come in bin order, and the grid then keeps them
+    // where they are instead of sorting them: both ways must give the same
+    // grid. The same ends twice, each bin's ends in the same order: once in
+    // bin order (the beams left out scattered among them), once with the
+    // last bin's ends moved to the front.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+    // Elevations reach 0.12 rad, the bins 0.05: some ends fall outside.
+    let bins = [41, 25];
+    let ends = random_ends(&mut rng, 600);
+    let probe = grid_of_ends(GridBuffers::default(), &ends, bins);
+    let bin = |end: &BeamEnd| {
+        let direction = match end {
+            BeamEnd::Hit { point, .. } => point.normalize(),
+            BeamEnd::Miss { direction } => *direction,
+        };
+        probe
+            .bin_of(&direction)
+            .map(|(a, e)| bin_index(probe.azimuth.count, a, e))
+    };
+    let (mut in_grid, left_out): (Vec<BeamEnd>, Vec<BeamEnd>) =
+        ends.iter().partition(|end| bin(end).is_some());
+    assert!(!left_out.is_empty(), "some ends must fall outside the bins");
+    in_grid.sort_by_key(|end| bin(end));
+    let mut in_order = in_grid.clone();
+    for end in left_out {
+        in_order.insert(rng.random_range(0..=in_order.len()), end);
+    }
+    let last = bin(in_grid.last().expect("ends in the grid"));
+    let (mut out_of_order, first): (Vec<BeamEnd>, Vec<BeamEnd>) =
+        in_order.iter().partition(|end| bin(end) == last);
+    out_of_order.extend(first);
+    let in_order = grid_of_ends(GridBuffers::default(), &in_order, bins);
+    let sorted = grid_of_ends(GridBuffers::default(), &out_of_order, bins);
+    assert_eq!(in_order.beam_count(), in_grid.len());
+    assert_eq!(contents(&in_order), contents(&sorted));
 }
 
 #[test]
