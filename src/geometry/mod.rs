@@ -31,6 +31,31 @@ pub fn floor(v: f64) -> i64 {
     truncated.saturating_sub(i64::from((truncated as f64) > v))
 }
 
+/// The larger of `a` and `b`, which are never NaN: `f64::max` without its
+/// NaN handling, one select where `f64::max` takes five instructions (hot in
+/// the grid's per-bin aggregates). On a tie it gives `a`; `f64::max` may then
+/// differ only in the sign of a zero.
+#[inline]
+pub fn larger(a: f64, b: f64) -> f64 {
+    debug_assert!(!a.is_nan() && !b.is_nan(), "larger({a}, {b})");
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
+/// The smaller of `a` and `b`, which are never NaN ([`larger`]'s mirror).
+#[inline]
+pub fn smaller(a: f64, b: f64) -> f64 {
+    debug_assert!(!a.is_nan() && !b.is_nan(), "smaller({a}, {b})");
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #[test]
@@ -60,6 +85,42 @@ mod tests {
         });
         for v in specials.into_iter().chain(random) {
             assert_eq!(super::floor(v), v.floor() as i64, "{v}");
+        }
+    }
+
+    #[test]
+    fn larger_and_smaller_are_the_library_max_and_min_without_nan() {
+        let specials = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            1e-300,
+            f64::MAX,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut random = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            // Few distinct values, so that ties come up.
+            (state % 9) as f64 - 4.0
+        };
+        let pairs = specials
+            .iter()
+            .flat_map(|&a| specials.iter().map(move |&b| (a, b)))
+            .chain((0..10_000).map(|_| (random(), random())));
+        for (a, b) in pairs {
+            let (max, min) = (super::larger(a, b), super::smaller(a, b));
+            // The same value; the same bits unless both are zeros.
+            assert_eq!(max, a.max(b), "larger({a}, {b})");
+            assert_eq!(min, a.min(b), "smaller({a}, {b})");
+            if a != 0.0 || b != 0.0 {
+                assert_eq!(max.to_bits(), a.max(b).to_bits(), "larger({a}, {b})");
+                assert_eq!(min.to_bits(), a.min(b).to_bits(), "smaller({a}, {b})");
+            }
         }
     }
 }

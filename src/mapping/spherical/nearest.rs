@@ -6,6 +6,7 @@
 
 use super::pyramid::BoxSummary;
 use super::{bin_at_index, bin_index, LocalGrid};
+use crate::geometry::{larger, smaller};
 use crate::mapping::chord::{Surface, TAIL};
 use rayon::prelude::*;
 
@@ -43,9 +44,9 @@ impl LocalGrid {
                 let beams = &self.beams[self.offsets[i] as usize..self.offsets[i + 1] as usize];
                 let mut s = BoxSummary::EMPTY;
                 for b in beams {
-                    s.near = s.near.min(b.band_start(max_range));
-                    s.far = s.far.max(b.reach(max_range));
-                    s.origin = s.origin.max(TAIL * b.sigma_origin);
+                    s.near = smaller(s.near, b.band_start(max_range));
+                    s.far = larger(s.far, b.reach(max_range));
+                    s.origin = larger(s.origin, TAIL * b.sigma_origin);
                 }
                 s.filled = u32::from(!beams.is_empty());
                 s.bins = 1;
@@ -58,8 +59,8 @@ impl LocalGrid {
                         } else {
                             best.range
                         },
-                        sigma: best.sigma.max(b.sigma),
-                        sigma_origin: best.sigma_origin.max(b.sigma_origin),
+                        sigma: larger(best.sigma, b.sigma),
+                        sigma_origin: larger(best.sigma_origin, b.sigma_origin),
                     })
                     .unwrap_or(NOTHING);
                 (s, nearest)
@@ -78,7 +79,7 @@ impl LocalGrid {
                 }
                 let (a, e) = bin_at_index(na, i);
                 let surface = pulled(own, (na, ne), a, e);
-                cell.near = cell.near.min(surface.band_start(max_range));
+                cell.near = smaller(cell.near, surface.band_start(max_range));
                 Some(surface)
             })
             .collect_into_vec(&mut surfaces);
@@ -103,7 +104,7 @@ fn pulled(own: &[Surface], (na, ne): (usize, usize), a: usize, e: usize) -> Surf
             other.range
         };
         let nearer = bound < surface.range;
-        let sigma = surface.sigma.max(other.sigma);
+        let sigma = larger(surface.sigma, other.sigma);
         surface.range = if nearer { bound } else { surface.range };
         surface.sigma = if nearer { sigma } else { surface.sigma };
     };

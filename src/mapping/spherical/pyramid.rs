@@ -3,6 +3,7 @@
 //! for its beams' range extent in at most four reads.
 
 use super::{bin_index, per_bin_into, LocalGrid};
+use crate::geometry::{larger, smaller};
 
 /// Aggregate of the beams of a box of angular bins.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,9 +35,9 @@ impl BoxSummary {
     /// Widens this summary by `other`'s bins.
     #[inline]
     pub(super) fn add(&mut self, other: &BoxSummary) {
-        self.near = self.near.min(other.near);
-        self.far = self.far.max(other.far);
-        self.origin = self.origin.max(other.origin);
+        self.near = smaller(self.near, other.near);
+        self.far = larger(self.far, other.far);
+        self.origin = larger(self.origin, other.origin);
         self.filled += other.filled;
         self.bins += other.bins;
     }
