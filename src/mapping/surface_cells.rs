@@ -19,7 +19,7 @@
 use super::chord::{origin_step, ray_box, Beam, CellModel};
 use super::octree::{Key, Octree, DEPTH};
 use super::spherical::LocalGrid;
-use crate::geometry::{floor, Vector3};
+use crate::geometry::{floor, larger, smaller, Vector3};
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
@@ -193,7 +193,7 @@ fn band_cells(
         );
         let (pa, pb) = (point(ta), point(tb));
         let range: [[i64; 2]; 3] = std::array::from_fn(|axis| {
-            let (lo, hi) = (pa[axis].min(pb[axis]), pa[axis].max(pb[axis]));
+            let (lo, hi) = (smaller(pa[axis], pb[axis]), larger(pa[axis], pb[axis]));
             [
                 floor((lo - widen) / resolution),
                 floor((hi + widen) / resolution),
