@@ -199,9 +199,10 @@ fn band_cells(
                 floor((hi + widen) / resolution),
             ]
         });
-        for x in range[0][0]..=range[0][1] {
-            for y in range[1][0]..=range[1][1] {
-                for z in range[2][0]..=range[2][1] {
+        // Half-open ranges: the same cells, fewer instructions than `..=`.
+        for x in range[0][0]..range[0][1].saturating_add(1) {
+            for y in range[1][0]..range[1][1].saturating_add(1) {
+                for z in range[2][0]..range[2][1].saturating_add(1) {
                     let cell = [x, y, z];
                     let seen = piece > 0
                         && (0..3).all(|a| previous[0][a] <= cell[a] && cell[a] <= previous[1][a]);
