@@ -90,7 +90,8 @@ const NO_CELL: u64 = u64::MAX;
 const FULL_SLOTS: usize = 64;
 
 /// The slot of `cell` in the cache of cells at `p_hi`: the low two bits of
-/// each coordinate, so that a band's neighbourhood never collides.
+/// each coordinate, so that cells fewer than four apart along some axis
+/// (a band piece's box, and its neighbours') never share a slot.
 #[inline]
 fn full_slot(cell: [i64; 3]) -> usize {
     ((cell[0] & 3) | (cell[1] & 3) << 2 | (cell[2] & 3) << 4) as usize
@@ -199,7 +200,8 @@ fn band_cells(
                 floor((hi + widen) / resolution),
             ]
         });
-        // Half-open ranges: the same cells, fewer instructions than `..=`.
+        // Half-open ranges: the same cells of the tree, fewer instructions
+        // than `..=`.
         for x in range[0][0]..range[0][1].saturating_add(1) {
             for y in range[1][0]..range[1][1].saturating_add(1) {
                 for z in range[2][0]..range[2][1].saturating_add(1) {

@@ -177,7 +177,7 @@ fn beams_land_in_their_bins_in_input_order() {
 
 #[test]
 fn ends_already_in_bin_order_make_the_grid_the_sort_makes() {
-    // A scan's beams mostly come in bin order, and the grid then keeps them
+    // A scan's beams usually come in bin order, and the grid then keeps them
     // where they are instead of sorting them: both ways must give the same
     // grid. The same ends twice, each bin's ends in the same order: once in
     // bin order (the beams left out scattered among them), once with the
