@@ -90,8 +90,8 @@ const NO_CELL: u64 = u64::MAX;
 const FULL_SLOTS: usize = 64;
 
 /// The slot of `cell` in the cache of cells at `p_hi`: the low two bits of
-/// each coordinate, so that cells fewer than four apart along some axis
-/// (a band piece's box, and its neighbours') never share a slot.
+/// each coordinate, so that two cells fewer than four apart along every
+/// axis (a band piece's box and its neighbours') never share a slot.
 #[inline]
 fn full_slot(cell: [i64; 3]) -> usize {
     ((cell[0] & 3) | (cell[1] & 3) << 2 | (cell[2] & 3) << 4) as usize
