@@ -27,7 +27,7 @@ fn results_do_not_depend_on_threads_and_survive_interruption() {
     run(&one, &["--threads", "1"]);
     run(&two, &["--threads", "2"]);
     let read = |p: &std::path::Path| std::fs::read(p).unwrap();
-    for file in ["runs.csv", "summary.csv"] {
+    for file in ["runs.csv", "summary.csv", "paired.csv"] {
         assert_eq!(
             read(&one.join(file)),
             read(&two.join(file)),
@@ -119,6 +119,85 @@ fn quickstart_shows_the_paper_claims() {
         mean("unscented", "anees")
     );
     assert!(mean("unscented", "false_free_rate") < mean("blind", "false_free_rate"));
+    // Every rate's interval within [0, 1], every ANEES interval above 0.
+    for r in &rows {
+        let (low, high): (f64, f64) = (r[5].parse().unwrap(), r[6].parse().unwrap());
+        if r[2].contains("rate") || ["precision", "recall", "f1", "brier"].contains(&&r[2]) {
+            assert!(
+                (0.0..=1.0).contains(&low) && (0.0..=1.0).contains(&high),
+                "{r:?}"
+            );
+        }
+        if &r[2] == "anees" && &r[1] != "ray_update" {
+            assert!(low >= 0.0, "{r:?}");
+        }
+    }
+}
+
+#[test]
+fn the_quickstart_pairs_every_method_with_the_ray_update() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = sigmap(&[
+        "run",
+        "experiments/quickstart.toml",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The terminal shows the paired rows under the table.
+    let shown = String::from_utf8_lossy(&out.stdout);
+    assert!(shown.contains("paired against ray_update"), "{shown}");
+    let text = std::fs::read_to_string(dir.path().join("paired.csv")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("cell,method,reference,metric,n,mean,ci95_low,ci95_high,verdict")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let row = |method: &str, metric: &str| {
+        rows.iter()
+            .find(|r| r[1] == method && r[3] == metric)
+            .unwrap_or_else(|| panic!("no row {method} {metric}"))
+    };
+    for method in ["blind", "unscented"] {
+        let false_free = row(method, "false_free_rate");
+        assert_eq!((false_free[2], false_free[4]), ("ray_update", "3"));
+        // The same difference runs.csv gives, seed by seed.
+        let runs = std::fs::read_to_string(dir.path().join("runs.csv")).unwrap();
+        let column = runs
+            .lines()
+            .next()
+            .unwrap()
+            .split(',')
+            .position(|c| c == "false_free_rate")
+            .unwrap();
+        let value = |m: &str, seed: &str| -> f64 {
+            runs.lines()
+                .map(|l| l.split(',').collect::<Vec<_>>())
+                .find(|r| r[1] == seed && r[2] == m)
+                .unwrap()[column]
+                .parse()
+                .unwrap()
+        };
+        let mean = ["1", "2", "3"]
+            .iter()
+            .map(|s| value(method, s) - value("ray_update", s))
+            .sum::<f64>()
+            / 3.0;
+        let written: f64 = false_free[5].parse().unwrap();
+        assert!((written - mean).abs() < 1e-12, "{written} vs {mean}");
+        // The README's claim: the OPDF maps call fewer occupied cells free.
+        assert_eq!(false_free[8], "better", "{false_free:?}");
+    }
+    // No row of the reference against itself; none on ANEES, which the ray
+    // update does not have.
+    assert!(rows.iter().all(|r| r[1] != "ray_update" && r[3] != "anees"));
+    let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+    assert!(html.contains("<table class=\"paired\">") && html.contains("against ray_update"));
 }
 
 #[test]
@@ -281,7 +360,7 @@ fn shards_merge_into_the_one_machine_result() {
         String::from_utf8_lossy(&out.stderr)
     );
     // The report too: the same summary, charts, slice and fingerprint.
-    for file in ["runs.csv", "summary.csv", "report.html"] {
+    for file in ["runs.csv", "summary.csv", "paired.csv", "report.html"] {
         assert_eq!(read(&merged.join(file)), read(&whole.join(file)), "{file}");
     }
     // A missing shard, an out-of-range shard, and a shard of another experiment are refused.

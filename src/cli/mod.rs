@@ -289,8 +289,27 @@ pub(crate) struct ExportArgs {
 pub(crate) struct ScoreArgs {
     /// The map, .bt or .ot, in the run's map frame at the experiment's resolution.
     map: PathBuf,
-    /// The experiment file (TOML) whose run the map is of.
-    experiment: PathBuf,
+    /// The experiment file (TOML) whose run the map is of (or --scene and --scans).
+    #[arg(required_unless_present = "scene")]
+    experiment: Option<PathBuf>,
+    /// Score against this scene (TOML) instead: its solids are the ground
+    /// truth, placed in the map frame by --scene-pose, at the map's resolution.
+    #[arg(long, requires = "scans", conflicts_with_all = ["experiment", "cell"])]
+    scene: Option<PathBuf>,
+    /// With --scene: the recorded scans (OctoMap ScanGraph) the map was built
+    /// from; the cells their rays crossed or ended in are the ones scored.
+    #[arg(long, requires = "scene")]
+    scans: Option<PathBuf>,
+    /// With --scene: where the scene stands in the map frame,
+    /// x,y,z,roll,pitch,yaw (m, rad; fixed-axis roll-pitch-yaw as in URDF)
+    /// [default: 0,0,0,0,0,0].
+    #[arg(long, requires = "scene", value_parser = parse_pose, allow_hyphen_values = true)]
+    scene_pose: Option<[f64; 6]>,
+    /// With --scene: scan points farther than this from their origin are
+    /// beams that returned nothing (as graph2tree -m and sigmap export have
+    /// them); default: every point is a hit.
+    #[arg(long, requires = "scene", allow_hyphen_values = true)]
+    max_range: Option<f64>,
     /// Sweep cell (0-based, in the order of summary.csv) [default: the base experiment].
     #[arg(long)]
     cell: Option<usize>,
@@ -361,6 +380,17 @@ fn parse_shard(text: &str) -> std::result::Result<(usize, usize), String> {
 fn parse_pooling(text: &str) -> std::result::Result<crate::mapping::pooling::Pooling, String> {
     crate::mapping::pooling::Pooling::from_name(text)
         .ok_or_else(|| "use faces, windows or off".into())
+}
+
+fn parse_pose(text: &str) -> std::result::Result<[f64; 6], String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
+        .collect::<std::result::Result<_, _>>()?;
+    match <[f64; 6]>::try_from(values.as_slice()) {
+        Ok(pose) if pose.iter().all(|v| v.is_finite()) => Ok(pose),
+        _ => Err("expected six finite numbers x,y,z,roll,pitch,yaw (m, rad)".into()),
+    }
 }
 
 fn parse_point(text: &str) -> std::result::Result<[f64; 3], String> {

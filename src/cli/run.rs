@@ -4,7 +4,7 @@
 use super::{progress_bar, with_threads, MergeArgs, RunArgs};
 use crate::error::{Error, Result};
 use crate::experiment::batch::{merge_shards, run_experiment, RunOptions};
-use crate::experiment::runner::SummaryRow;
+use crate::experiment::summary::{PairedRow, SummaryRow};
 use crate::experiment::Experiment;
 use indicatif::ProgressBar;
 
@@ -30,8 +30,9 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     ProgressBar::finish_and_clear(&bar);
     if !args.run.quiet {
         print_headline(&outcome.experiment, &outcome.summary, outcome.runs);
+        print_paired(&outcome.experiment, &outcome.paired);
         eprintln!(
-            "wrote {}/runs.csv, summary.csv, timings.csv, map_<method>.bt and report.html",
+            "wrote {}/runs.csv, summary.csv, paired.csv, timings.csv, map_<method>.bt and report.html",
             outcome.out.display()
         );
     }
@@ -42,7 +43,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
 pub(crate) fn merge(args: MergeArgs) -> Result<()> {
     let out = merge_shards(&args.experiment, &args.shards, args.out.as_deref())?;
     eprintln!(
-        "merged {} shards into {}/runs.csv, summary.csv, timings.csv and report.html",
+        "merged {} shards into {}/runs.csv, summary.csv, paired.csv, timings.csv and report.html",
         args.shards.len(),
         out.display()
     );
@@ -88,5 +89,55 @@ fn print_headline(experiment: &Experiment, summary: &[SummaryRow], rows: usize) 
             get(m, "roc_auc"),
             get(m, "anees")
         );
+    }
+}
+
+/// The metrics of the paired table: (column, title, digits).
+const PAIRED: [(&str, &str, usize); 6] = [
+    ("precision", "precision", 3),
+    ("recall", "recall", 3),
+    ("f1", "F1", 3),
+    ("false_free_rate", "false-free", 4),
+    ("unknown_fraction", "unknown", 3),
+    ("brier", "Brier", 3),
+];
+
+/// The first cell's paired comparisons: per method but the reference, each
+/// metric's mean per-seed difference, its 95% interval and the verdict.
+fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
+    let first = paired.first().map(|p| p.cell.clone()).unwrap_or_default();
+    if experiment.methods.len() < 2 || experiment.seeds.len() < 2 {
+        return;
+    }
+    println!(
+        "paired against {} (method - {}, per seed): mean [95% interval] verdict",
+        experiment.reference, experiment.reference
+    );
+    for method in experiment
+        .methods
+        .iter()
+        .filter(|&&m| m != experiment.reference)
+    {
+        for (metric, title, digits) in PAIRED {
+            let Some(p) = paired
+                .iter()
+                .find(|p| p.cell == first && p.method == method.as_str() && p.metric == metric)
+            else {
+                continue;
+            };
+            println!(
+                "{:<11} {:<11} {:>+9.digits$} [{:>+9.digits$}, {:>+9.digits$}]  {}",
+                if metric == PAIRED[0].0 {
+                    method.as_str()
+                } else {
+                    ""
+                },
+                title,
+                p.mean,
+                p.ci95_low,
+                p.ci95_high,
+                p.verdict.as_str()
+            );
+        }
     }
 }

@@ -1,44 +1,107 @@
 //! `sigmap score`: any OctoMap file scored as `sigmap run` scores its maps
-//! (`experiment::runner::score_external`).
+//! (`experiment::scoring::score_external`), or against a known scene with
+//! the mask of recorded scans (`experiment::scoring::score_against_scene`).
 
 use super::{with_threads, ScoreArgs};
-use crate::error::Result;
-use crate::experiment::metrics::{Kind, METRICS};
-use crate::experiment::runner::{append_row, score_external};
+use crate::error::{Error, Result};
+use crate::experiment::metrics::{Kind, RunRow, METRICS};
+use crate::experiment::recorded::read_scan_graph;
+use crate::experiment::runner::append_row;
+use crate::experiment::scoring::{score_against_scene, score_external};
 use crate::experiment::Experiment;
+use crate::geometry::Pose;
 use crate::mapping::octomap_io::read_octree;
+use crate::mapping::octree::Clamp;
+use crate::sim::scene::Scene;
 
 /// `sigmap score`.
 pub(crate) fn run(args: ScoreArgs) -> Result<()> {
-    let experiment = Experiment::load_cell_index(&args.experiment, args.cell)?;
-    let seed = args.run.seed.unwrap_or(experiment.seed);
-    let map = read_octree(&args.map, experiment.map.clamp())?;
     let name = crate::sim::scene::stem(&args.map);
-    let row = with_threads(args.run.threads, || {
-        score_external(&experiment, seed, &map, &name)
-    })??;
+    let (row, against) = match (&args.scene, &args.experiment) {
+        (Some(scene), _) => against_scene(&args, scene, &name)?,
+        (None, Some(path)) => {
+            let experiment = Experiment::load_cell_index(path, args.cell)?;
+            let seed = args.run.seed.unwrap_or(experiment.seed);
+            let map = read_octree(&args.map, experiment.map.clamp())?;
+            let row = with_threads(args.run.threads, || {
+                score_external(&experiment, seed, &map, &name)
+            })??;
+            let cell = match Experiment::cell_label(&experiment.cell) {
+                label if label.is_empty() => String::new(),
+                label => format!(", cell {label}"),
+            };
+            (
+                row,
+                format!("experiment '{}', seed {seed}{cell}", experiment.name),
+            )
+        }
+        (None, None) => {
+            return Err(Error::Usage(
+                "give the experiment file, or --scene SCENE.toml --scans SCANS.graph".into(),
+            ))
+        }
+    };
     if let Some(path) = &args.csv {
         append_row(path, &row)?;
     }
     if !args.run.quiet {
-        println!(
-            "{} against experiment '{}', seed {seed}{}:",
-            args.map.display(),
-            experiment.name,
-            match Experiment::cell_label(&experiment.cell) {
-                label if label.is_empty() => String::new(),
-                label => format!(", cell {label}"),
-            }
-        );
-        for (metric, value) in METRICS.iter().zip(&row.values) {
-            if value.is_nan() {
-                continue;
-            }
-            match metric.kind {
-                Kind::Count => println!("  {:<24} {value:>12}", metric.name),
-                Kind::Real => println!("  {:<24} {value:>12.6}", metric.name),
-            }
-        }
+        print_row(&format!("{} against {against}:", args.map.display()), &row);
     }
     Ok(())
+}
+
+/// The row of the map against `scene` with the mask of `--scans`.
+fn against_scene(
+    args: &ScoreArgs,
+    scene: &std::path::Path,
+    name: &str,
+) -> Result<(RunRow, String)> {
+    if args.run.seed.is_some() {
+        return Err(Error::Usage(
+            "--seed does not apply with --scene: recorded scans have no seed".into(),
+        ));
+    }
+    if let Some(reach) = args.max_range {
+        if !(reach.is_finite() && reach > 0.0) {
+            return Err(Error::Usage(format!(
+                "--max-range {reach}: give a positive distance in metres"
+            )));
+        }
+    }
+    let scene_data = Scene::load(scene)?;
+    let scans = args.scans.as_ref().ok_or_else(|| {
+        Error::Usage("--scene needs --scans SCANS.graph, the scans the map was built from".into())
+    })?;
+    let nodes = read_scan_graph(scans)?;
+    // OctoMap's clamp, as a map file written by OctoMap or sigmap keeps it.
+    let map = read_octree(&args.map, Clamp::OCTOMAP)?;
+    let [x, y, z, roll, pitch, yaw] = args.scene_pose.unwrap_or([0.0; 6]);
+    let map_from_scene = Pose::new([x, y, z], [roll, pitch, yaw]).to_isometry();
+    let row = with_threads(args.run.threads, || {
+        score_against_scene(
+            &map,
+            &scene_data,
+            &map_from_scene,
+            &nodes,
+            args.max_range,
+            name,
+        )
+    })??;
+    Ok((
+        row,
+        format!("scene {} seen by {}", scene.display(), scans.display()),
+    ))
+}
+
+fn print_row(title: &str, row: &RunRow) {
+    println!("{title}");
+    for (metric, value) in METRICS.iter().zip(&row.values) {
+        if value.is_nan() {
+            continue;
+        }
+        match metric.kind {
+            Kind::Count => println!("  {:<24} {value:>12}", metric.name),
+            Kind::Real => println!("  {:<24} {value:>12.6}", metric.name),
+        }
+    }
 }

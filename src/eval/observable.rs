@@ -7,6 +7,40 @@ use crate::mapping::ray_update::ray_keys;
 use crate::sim::scan::ScanTruth;
 use rustc_hash::FxHashSet;
 
+/// One beam as the mask sees it: from its sensor origin to its end, which is
+/// a surface it hit (`hit`) or the point where it left the maximum range.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SeenRay {
+    /// The sensor origin.
+    pub origin: Point3,
+    /// Where the beam ended.
+    pub end: Point3,
+    /// Whether it ended on a surface (its end cell was seen too).
+    pub hit: bool,
+}
+
+/// Morton codes of the cells (at `resolution`) that a ray traversed from its
+/// origin to its end, and of its end cell when it hit a surface.
+pub fn observable_along(
+    rays: impl IntoIterator<Item = SeenRay>,
+    resolution: f64,
+) -> FxHashSet<u64> {
+    let grid = Octree::new(resolution);
+    let mut cells = FxHashSet::default();
+    let mut keys = Vec::new();
+    for ray in rays {
+        keys.clear();
+        ray_keys(&grid, &ray.origin, &ray.end, &mut keys);
+        cells.extend(keys.iter().map(|k| k.morton()));
+        if ray.hit {
+            if let Some(k) = grid.key(&ray.end) {
+                cells.insert(k.morton());
+            }
+        }
+    }
+    cells
+}
+
 /// Morton codes of the cells (at `resolution`) that a true beam traversed,
 /// or whose surface it hit, from the true sensor origin: up to the true hit,
 /// or up to the maximum range for beams that reached nothing; in the map
@@ -19,27 +53,24 @@ pub fn observable_cells<'a>(
     resolution: f64,
     offset: &Vector3,
 ) -> FxHashSet<u64> {
-    let grid = Octree::new(resolution);
-    let mut cells = FxHashSet::default();
-    let mut ray = Vec::new();
-    for truth in truths {
+    let rays = truths.into_iter().flat_map(|truth| {
         let pose = &truth.scene_from_camera;
         let origin = Point3::from(pose.translation.vector + offset);
-        for (beam, d) in truth.beams.iter().zip(directions) {
-            let end = if beam.range.is_nan() {
-                origin + pose.rotation * d * max_range
+        truth.beams.iter().zip(directions).map(move |(beam, d)| {
+            if beam.range.is_nan() {
+                SeenRay {
+                    origin,
+                    end: origin + pose.rotation * d * max_range,
+                    hit: false,
+                }
             } else {
-                beam.point + offset
-            };
-            ray.clear();
-            ray_keys(&grid, &origin, &end, &mut ray);
-            cells.extend(ray.iter().map(|k| k.morton()));
-            if !beam.range.is_nan() {
-                if let Some(k) = grid.key(&end) {
-                    cells.insert(k.morton());
+                SeenRay {
+                    origin,
+                    end: beam.point + offset,
+                    hit: true,
                 }
             }
-        }
-    }
-    cells
+        })
+    });
+    observable_along(rays, resolution)
 }

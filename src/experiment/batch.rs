@@ -6,9 +6,8 @@
 
 use super::journal::{fingerprint, journal_record, read_journal, Inputs, Wanted};
 use super::model::Method;
-use super::runner::{
-    ground_truth, read_rows, run_seed, summarise, write_rows, RunRow, SummaryRow, TimingRow,
-};
+use super::runner::{ground_truth, read_rows, run_seed, write_rows, RunRow, TimingRow};
+use super::summary::{paired, summarise, PairedRow, SummaryRow};
 use super::Experiment;
 use super::{plots, report};
 use crate::error::{Error, Result};
@@ -38,6 +37,8 @@ pub struct RunOutcome {
     pub out: PathBuf,
     /// The rows of `summary.csv`.
     pub summary: Vec<SummaryRow>,
+    /// The rows of `paired.csv`.
+    pub paired: Vec<PairedRow>,
     /// Runs (rows of `runs.csv`) in the folder.
     pub runs: usize,
 }
@@ -207,13 +208,14 @@ pub fn run_experiment(
         timings.extend(t);
     }
     let runs = rows.len();
-    let (summary, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
-    write_report_with_slice(&out, &experiment, &summary, &inputs, charts)?;
+    let (study, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
+    write_report_with_slice(&out, &experiment, &study, &inputs, charts)?;
     std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
     Ok(RunOutcome {
         experiment,
         out,
-        summary,
+        summary: study.summary,
+        paired: study.paired,
         runs,
     })
 }
@@ -240,17 +242,25 @@ pub fn finished_runs(dir: &Path, wanted: &Wanted) -> Result<BTreeSet<(String, u6
     Ok(wanted.complete(&rows))
 }
 
+/// What a finished study concludes: `summary.csv` and `paired.csv`.
+pub struct Study {
+    /// Each method's means over the seeds.
+    pub summary: Vec<SummaryRow>,
+    /// Each method against the reference, seed by seed.
+    pub paired: Vec<PairedRow>,
+}
+
 /// Sorts the rows into the one order every machine agrees on (cell, seed,
 /// method as the experiment lists them), writes runs.csv, timings.csv,
-/// summary.csv and the summary's charts, and returns the summary and the
-/// charts written.
+/// summary.csv, paired.csv and the summary's charts, and returns the study
+/// and the charts written.
 fn finalize(
     out: &Path,
     experiment: &Experiment,
     labels: &[String],
     mut rows: Vec<RunRow>,
     mut timings: Vec<TimingRow>,
-) -> Result<(Vec<SummaryRow>, Vec<PathBuf>)> {
+) -> Result<(Study, Vec<PathBuf>)> {
     let methods: &[Method] = &experiment.methods;
     let method_order = |m: &str| {
         methods
@@ -268,6 +278,8 @@ fn finalize(
     write_rows(&out.join("timings.csv"), &timings)?;
     let summary = summarise(&rows, labels, methods);
     write_rows(&out.join("summary.csv"), &summary)?;
+    let paired = paired(&rows, labels, methods, experiment.reference);
+    write_rows(&out.join("paired.csv"), &paired)?;
     let mut charts = plots::plot_scores(
         &out.join("scores.svg"),
         &summary,
@@ -283,7 +295,7 @@ fn finalize(
     let coverage = out.join("coverage.svg");
     plots::plot_coverage(&coverage, &summary, &labels[0], methods)?;
     charts.push(coverage);
-    Ok((summary, charts))
+    Ok((Study { summary, paired }, charts))
 }
 
 /// Writes `report.html` from the folder's summary and `charts`, with the
@@ -291,7 +303,7 @@ fn finalize(
 fn write_report_with_slice(
     out: &Path,
     experiment: &Experiment,
-    summary: &[SummaryRow],
+    study: &Study,
     inputs: &Inputs,
     mut charts: Vec<PathBuf>,
 ) -> Result<()> {
@@ -299,7 +311,7 @@ fn write_report_with_slice(
     if slice.is_file() {
         charts.push(slice);
     }
-    report::write_report(out, experiment, summary, inputs, &charts)
+    report::write_report(out, experiment, study, inputs, &charts)
 }
 
 /// `run.toml`: which experiment, inputs, version and shard produced a folder.
@@ -419,7 +431,7 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
     }
     let out = results_dir(&experiment, out);
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    let (summary, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
+    let (study, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
     write_manifest(&out, &experiment, &expected, 1, 1)?;
     // The first run's maps and slice live in the shard that ran it.
     for dir in shards {
@@ -434,6 +446,6 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
             }
         }
     }
-    write_report_with_slice(&out, &experiment, &summary, &expected, charts)?;
+    write_report_with_slice(&out, &experiment, &study, &expected, charts)?;
     Ok(out)
 }

@@ -100,6 +100,10 @@ pub struct Experiment {
     /// The modelling methods compared by `sigmap run`
     /// (default blind, unscented, ray_update).
     pub methods: Vec<super::model::Method>,
+    /// The method every other one is paired against in `paired.csv`
+    /// (`reference = ".."`; default `ray_update` when listed, else the
+    /// first method).
+    pub reference: super::model::Method,
     /// The workcell scene.
     pub scene: Scene,
     /// The robot.
@@ -270,7 +274,16 @@ impl Experiment {
                 .map_err(|e| bad(format!("[unscented] {e}")))?,
             None => SigmaSet::Paper,
         };
-        let seeds = file.seeds.clone().unwrap_or_else(|| vec![file.seed]);
+        let seeds = match &file.seeds {
+            Some(spec) => spec.seeds(MAX_SEEDS as u64).map_err(&bad)?,
+            None => vec![file.seed],
+        };
+        if seeds.len() > MAX_SEEDS {
+            return Err(bad(format!(
+                "`seeds` lists {} seeds; sigmap runs at most {MAX_SEEDS} seeds per experiment",
+                seeds.len()
+            )));
+        }
         if seeds.is_empty() {
             return Err(bad("`seeds` is empty".into()));
         }
@@ -294,6 +307,7 @@ impl Experiment {
         if let Some(method) = first_repeat(&methods) {
             return Err(bad(format!("`methods` lists {method} more than once")));
         }
+        let reference = reference_method(file.reference.as_deref(), &methods).map_err(&bad)?;
         let scanner = file.sensor.build().map_err(bad)?;
         if file.viewpoints.is_empty() {
             return Err(bad("the experiment has no [[viewpoint]]".into()));
@@ -326,6 +340,7 @@ impl Experiment {
             sigma_set,
             seeds,
             methods,
+            reference,
             scene,
             robot,
             arm,
@@ -483,6 +498,34 @@ pub const MAX_VIEWPOINTS: usize = 10_000;
 /// Most beams per run (all viewpoints): a run's scans, their truth and one
 /// map stay within a few GB.
 pub const MAX_BEAMS_PER_RUN: f64 = 16_000_000.0;
+
+/// Most seeds per experiment (a list or a range).
+pub const MAX_SEEDS: usize = 100_000;
+
+/// The reference of the paired comparisons: the method `named`, which
+/// `methods` must list; without a name `ray_update` when listed, else the
+/// first method.
+fn reference_method(
+    named: Option<&str>,
+    methods: &[super::model::Method],
+) -> std::result::Result<super::model::Method, String> {
+    use super::model::Method;
+    match named {
+        Some(name) => {
+            let method: Method = name.parse().map_err(|e| format!("reference: {e}"))?;
+            if !methods.contains(&method) {
+                let listed: Vec<&str> = methods.iter().map(|m| m.as_str()).collect();
+                return Err(format!(
+                    "reference = \"{name}\" is not one of `methods` ({}); add it there or pick one of them",
+                    listed.join(", ")
+                ));
+            }
+            Ok(method)
+        }
+        None if methods.contains(&Method::RayUpdate) => Ok(Method::RayUpdate),
+        None => Ok(methods[0]),
+    }
+}
 
 /// Refuses surface samples between beams (`interpolate_beams`) for a
 /// viewpoint of `beams` beams when beams and samples together would pass

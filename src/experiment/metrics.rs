@@ -45,6 +45,39 @@ pub enum Tolerance {
     Relative(f64),
 }
 
+/// Which way a metric improves: what `paired.csv`'s verdicts rank by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Better {
+    /// Lower is better (false-free rate, Brier, log-loss, unknown).
+    Lower,
+    /// Higher is better (precision, recall, F1, IoU, ROC AUC).
+    Higher,
+    /// Nearer this value is better (ANEES and NEES: 3, the dimension;
+    /// coverage: the χ²₃ share).
+    Toward(f64),
+    /// Not ranked (counts, sizes, bands): never summarised.
+    Unranked,
+}
+
+/// The interval a metric's values lie in: summary intervals are kept inside
+/// it (docs/math.md §7.4).
+pub type Range = (f64, f64);
+
+/// A share of cells or points: [0, 1].
+const RATE: Range = (0.0, 1.0);
+/// Non-negative and unbounded: log-loss, ANEES, NEES.
+const POSITIVE: Range = (0.0, f64::INFINITY);
+/// Counts and sizes.
+const COUNT: Range = (0.0, f64::INFINITY);
+
+/// The share of 3-D Gaussian errors inside the 1, 2 and 3σ ellipsoids,
+/// `P(χ²₃ ≤ k²)` (`consistency::expected_coverage`, checked in the tests).
+pub const COVERAGE_3D: [f64; 3] = [
+    0.198_748_043_098_799,
+    0.738_535_870_050_889,
+    0.970_709_113_465_112,
+];
+
 /// One metric.
 pub struct Metric {
     /// The `runs.csv` column and the `summary.csv` metric name.
@@ -55,6 +88,10 @@ pub struct Metric {
     pub kind: Kind,
     /// Summarised, and the regression tolerance.
     pub tolerance: Tolerance,
+    /// Which way it improves.
+    pub better: Better,
+    /// Where its values lie.
+    pub range: Range,
     /// Its value for one run of one method (NaN when it does not apply).
     pub value: fn(&Measured) -> f64,
 }
@@ -81,6 +118,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "observable cells scored",
         kind: Kind::Count,
         tolerance: Tolerance::NotSummarised,
+        better: Better::Unranked,
+        range: COUNT,
         value: |m| m.scores.observable_cells as f64,
     },
     Metric {
@@ -88,6 +127,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "truly occupied observable cells",
         kind: Kind::Count,
         tolerance: Tolerance::NotSummarised,
+        better: Better::Unranked,
+        range: COUNT,
         value: |m| m.scores.occupied_cells as f64,
     },
     Metric {
@@ -95,6 +136,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "occupied precision, TP / (TP + FP)",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Higher,
+        range: RATE,
         value: |m| m.scores.precision,
     },
     Metric {
@@ -102,6 +145,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "occupied recall, TP / truly occupied",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Higher,
+        range: RATE,
         value: |m| m.scores.recall,
     },
     Metric {
@@ -109,6 +154,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "occupied F1",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Higher,
+        range: RATE,
         value: |m| m.scores.f1,
     },
     Metric {
@@ -116,6 +163,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "occupied IoU, TP / (TP + FP + FN)",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Higher,
+        range: RATE,
         value: |m| m.scores.iou,
     },
     Metric {
@@ -123,6 +172,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "truly occupied cells called free / truly occupied: the collision risk",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Lower,
+        range: RATE,
         value: |m| m.scores.false_free_rate,
     },
     Metric {
@@ -130,6 +181,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "the same within one cell of a surface",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Lower,
+        range: RATE,
         value: |m| m.scores.false_free_rate_margin,
     },
     Metric {
@@ -137,6 +190,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "truly free cells called occupied / truly free",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Lower,
+        range: RATE,
         value: |m| m.scores.false_occupied_rate,
     },
     Metric {
@@ -144,6 +199,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "unknown cells / observable",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Lower,
+        range: RATE,
         value: |m| m.scores.unknown_fraction,
     },
     Metric {
@@ -151,6 +208,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "Brier score over known cells",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Lower,
+        range: RATE,
         value: |m| m.scores.brier,
     },
     Metric {
@@ -158,6 +217,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "log-loss over known cells",
         kind: Kind::Real,
         tolerance: Tolerance::Relative(0.05),
+        better: Better::Lower,
+        range: POSITIVE,
         value: |m| m.scores.log_loss,
     },
     Metric {
@@ -165,6 +226,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "ROC AUC of P over known cells",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Higher,
+        range: RATE,
         value: |m| m.scores.roc_auc,
     },
     Metric {
@@ -172,6 +235,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "ANEES of the propagated points against the true surface points (NaN for ray_update)",
         kind: Kind::Real,
         tolerance: Tolerance::Relative(0.05),
+        better: Better::Toward(3.0),
+        range: POSITIVE,
         value: |m| consistency(m, |r| r.anees),
     },
     Metric {
@@ -180,6 +245,8 @@ pub const METRICS: [Metric; 22] = [
               (the points of a viewpoint share its pose error: a reference only)",
         kind: Kind::Real,
         tolerance: Tolerance::NotSummarised,
+        better: Better::Unranked,
+        range: POSITIVE,
         value: |m| consistency(m, |r| r.bounds.0),
     },
     Metric {
@@ -187,6 +254,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "upper end of that band",
         kind: Kind::Real,
         tolerance: Tolerance::NotSummarised,
+        better: Better::Unranked,
+        range: POSITIVE,
         value: |m| consistency(m, |r| r.bounds.1),
     },
     Metric {
@@ -195,6 +264,8 @@ pub const METRICS: [Metric; 22] = [
               has the χ²₃ₙ/N band (docs/math.md §6.6)",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Toward(3.0),
+        range: POSITIVE,
         value: |m| m.nees_point,
     },
     Metric {
@@ -202,6 +273,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "share of true points inside the 1σ ellipsoid",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Toward(COVERAGE_3D[0]),
+        range: RATE,
         value: |m| consistency(m, |r| r.coverage[0]),
     },
     Metric {
@@ -209,6 +282,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "the same for 2σ",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Toward(COVERAGE_3D[1]),
+        range: RATE,
         value: |m| consistency(m, |r| r.coverage[1]),
     },
     Metric {
@@ -216,6 +291,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "the same for 3σ",
         kind: Kind::Real,
         tolerance: SCORE,
+        better: Better::Toward(COVERAGE_3D[2]),
+        range: RATE,
         value: |m| consistency(m, |r| r.coverage[2]),
     },
     Metric {
@@ -223,6 +300,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "octree nodes",
         kind: Kind::Count,
         tolerance: Tolerance::NotSummarised,
+        better: Better::Unranked,
+        range: COUNT,
         value: |m| m.stats.nodes as f64,
     },
     Metric {
@@ -230,6 +309,8 @@ pub const METRICS: [Metric; 22] = [
         doc: "octree bytes",
         kind: Kind::Count,
         tolerance: Tolerance::NotSummarised,
+        better: Better::Unranked,
+        range: COUNT,
         value: |m| m.stats.bytes as f64,
     },
 ];

@@ -37,7 +37,9 @@ pub mod regress;
 pub mod report;
 pub mod runner;
 mod scan_files;
+pub mod scoring;
 mod simulate;
+pub mod summary;
 
 pub(crate) use config::check_sample_budget;
 pub use config::{Experiment, SweepAxis, SweepValue, Viewpoint};

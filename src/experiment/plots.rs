@@ -3,7 +3,7 @@
 //! of each map against the truth.
 
 use super::model::Method;
-use super::runner::SummaryRow;
+use super::summary::SummaryRow;
 use super::{Experiment, SweepValue};
 use crate::error::{Error, Result};
 use crate::eval::scores::UNKNOWN_BAND;

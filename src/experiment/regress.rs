@@ -2,7 +2,7 @@
 //! metric, with per-metric tolerances.
 
 use super::metrics::Tolerance;
-use super::runner::SummaryRow;
+use super::summary::SummaryRow;
 use crate::error::{Error, Result};
 use std::collections::BTreeSet;
 use std::path::Path;

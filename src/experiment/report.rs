@@ -5,8 +5,9 @@
 //! `sigmap merge`; like the other outputs, the same inputs give the same
 //! bytes (no dates, no timings).
 
+use super::batch::Study;
 use super::journal::Inputs;
-use super::runner::SummaryRow;
+use super::summary::{PairedRow, SummaryRow, Verdict};
 use super::Experiment;
 use crate::error::{Error, Result};
 use crate::files::write_file;
@@ -73,13 +74,14 @@ th,td{border:1px solid #ccc;padding:0.25em 0.6em;text-align:right}\
 th:first-child,td:first-child{text-align:left}th{background:#f2f2f2}\
 td small{color:#666}figure{margin:1em 0 2em}figure svg{max-width:100%;height:auto}\
 figcaption{color:#444;margin-top:0.3em}dl{display:grid;grid-template-columns:max-content auto;gap:0.2em 1em}\
-dt{font-weight:bold}dd{margin:0;font-family:monospace}.description{white-space:pre-wrap}";
+dt{font-weight:bold}dd{margin:0;font-family:monospace}.description{white-space:pre-wrap}\
+td.better{background:#e3f4e1}td.worse{background:#fbe2e0}td.within_noise{color:#555}";
 
 /// The page for a finished run folder: `charts` are the SVG files to
 /// show, in order (missing ones are skipped).
 pub fn render(
     experiment: &Experiment,
-    summary: &[SummaryRow],
+    study: &Study,
     inputs: &Inputs,
     charts: &[PathBuf],
 ) -> Result<String> {
@@ -116,7 +118,7 @@ pub fn render(
         );
     }
     html.push_str("</table>\n</details>\n");
-    headline(&mut html, experiment, summary);
+    headline(&mut html, experiment, &study.summary, &study.paired);
     html.push_str("<h2>Charts</h2>\n");
     let mut per_metric = String::new();
     for chart in charts {
@@ -152,21 +154,35 @@ pub fn render(
     }
     html.push_str(
         "<p><small>Written by <code>sigmap run</code> / <code>sigmap merge</code>; the numbers are \
-         those of summary.csv (mean over the seeds, 95% interval of the mean).</small></p>\n\
+         those of summary.csv (mean over the seeds, 95% interval of the mean, cut to the \
+         metric's range) and paired.csv (mean per-seed difference against the reference, its \
+         95% Student t interval and verdict).</small></p>\n\
          </body>\n</html>\n",
     );
     Ok(html)
 }
 
 /// One table per sweep cell: a row per method, each headline metric as
-/// `mean` over `[low, high]`.
-fn headline(html: &mut String, experiment: &Experiment, summary: &[SummaryRow]) {
+/// `mean` over `[low, high]`; beside it the paired table, a row per method
+/// but the reference, each metric's mean per-seed difference, interval and
+/// verdict.
+fn headline(
+    html: &mut String,
+    experiment: &Experiment,
+    summary: &[SummaryRow],
+    paired: &[PairedRow],
+) {
     html.push_str("<h2>Scores</h2>\n");
     let _ = writeln!(
         html,
         "<p>Means over {} seeds, with the 95% interval of the mean; the full table is \
-         summary.csv, every run runs.csv.</p>",
-        experiment.seeds.len()
+         summary.csv, every run runs.csv. Two methods of a seed map the same scans, so \
+         they are compared seed by seed: the second table gives each method's mean \
+         difference from <b>{}</b> (method − {}), its 95% interval and the verdict \
+         (paired.csv).</p>",
+        experiment.seeds.len(),
+        experiment.reference,
+        experiment.reference
     );
     let mut cells: Vec<&str> = Vec::new();
     for row in summary {
@@ -207,6 +223,65 @@ fn headline(html: &mut String, experiment: &Experiment, summary: &[SummaryRow]) 
             html.push_str("</tr>\n");
         }
         html.push_str("</table>\n");
+        paired_table(html, experiment, cell, paired);
+    }
+}
+
+/// The paired table of one cell (nothing with a single method).
+fn paired_table(html: &mut String, experiment: &Experiment, cell: &str, paired: &[PairedRow]) {
+    if experiment.methods.len() < 2 {
+        return;
+    }
+    let _ = write!(
+        html,
+        "<table class=\"paired\">\n<tr><th>against {}</th>",
+        experiment.reference
+    );
+    for (_, title, _) in HEADLINE {
+        let _ = write!(html, "<th>{title}</th>");
+    }
+    html.push_str("</tr>\n");
+    for method in experiment
+        .methods
+        .iter()
+        .filter(|&&m| m != experiment.reference)
+    {
+        let _ = write!(html, "<tr><td>{}</td>", method.as_str());
+        for (metric, _, digits) in HEADLINE {
+            let row = paired
+                .iter()
+                .find(|p| p.cell == cell && p.method == method.as_str() && p.metric == metric);
+            match row {
+                Some(p) if p.mean.is_finite() => {
+                    let _ = write!(
+                        html,
+                        "<td class=\"{}\">{:+.digits$}",
+                        p.verdict.as_str(),
+                        p.mean
+                    );
+                    if p.ci95_low.is_finite() {
+                        let _ = write!(
+                            html,
+                            "<br><small>[{:+.digits$}, {:+.digits$}]</small>",
+                            p.ci95_low, p.ci95_high
+                        );
+                    }
+                    let _ = write!(html, "<br>{}</td>", verdict_words(p.verdict));
+                }
+                _ => html.push_str("<td>–</td>"),
+            }
+        }
+        html.push_str("</tr>\n");
+    }
+    html.push_str("</table>\n");
+}
+
+/// A verdict as the report writes it.
+fn verdict_words(verdict: Verdict) -> &'static str {
+    match verdict {
+        Verdict::Better => "better",
+        Verdict::Worse => "worse",
+        Verdict::WithinNoise => "within noise",
     }
 }
 
@@ -214,11 +289,11 @@ fn headline(html: &mut String, experiment: &Experiment, summary: &[SummaryRow]) 
 pub fn write_report(
     out: &Path,
     experiment: &Experiment,
-    summary: &[SummaryRow],
+    study: &Study,
     inputs: &Inputs,
     charts: &[PathBuf],
 ) -> Result<()> {
-    let html = render(experiment, summary, inputs, charts)?;
+    let html = render(experiment, study, inputs, charts)?;
     write_file(&out.join("report.html"), html.as_bytes())
 }
 

@@ -1,7 +1,7 @@
 //! `sigmap run`: every seed of an experiment, every method on each seed's
 //! scans (common random numbers), scored against the ground truth.
 
-use super::metrics::{Measured, METRICS};
+use super::metrics::Measured;
 use super::model::{
     build_map_measured, hit_point, measured_ranges, propagator, scan_chain, MapperView, Method,
 };
@@ -14,7 +14,7 @@ use crate::geometry::{Isometry3, Matrix3, Vector3};
 use crate::mapping::pooling::Pooled;
 use crate::mapping::Octree;
 use crate::sim::scan::ScanTruth;
-use crate::uncertainty::consistency::{nees, student_t_quantile, ConsistencyReport};
+use crate::uncertainty::consistency::{nees, ConsistencyReport};
 use crate::uncertainty::Propagator;
 use rustc_hash::FxHashSet;
 use serde::{Deserialize, Serialize};
@@ -169,49 +169,6 @@ pub fn run_seed(
     Ok((rows, timings, maps))
 }
 
-/// Scores a map built elsewhere (any OctoMap file) against the run of
-/// `experiment` with `seed`, with the ground truth and observable mask
-/// `sigmap run` uses, as a runs.csv row whose method is `name`. The map must
-/// be in the run's map frame (the scene frame shifted by
-/// `Experiment::map_offset`, which `sigmap export` applies) at the
-/// experiment's resolution; another resolution is refused.
-pub fn score_external(
-    experiment: &Experiment,
-    seed: u64,
-    map: &Octree,
-    name: &str,
-) -> Result<RunRow> {
-    if (map.resolution() - experiment.resolution).abs() > 1e-9 * experiment.resolution {
-        return Err(Error::Usage(format!(
-            "the map's resolution is {} m, the experiment's {} m: build the map at {} m \
-             (graph2tree -res, sigmap map --resolution) or score it against an experiment at {} m",
-            map.resolution(),
-            experiment.resolution,
-            experiment.resolution,
-            map.resolution()
-        )));
-    }
-    let run = simulate(experiment, seed, |_| {})?;
-    let offset = experiment.map_offset(seed);
-    let observable = observable(experiment, &run.truth.scans, &offset);
-    let truth = ground_truth(experiment, seed);
-    let scores = score_map(map, &truth, &observable);
-    let stats = map.stats();
-    let measured = Measured {
-        scores: &scores,
-        consistency: None,
-        nees_point: f64::NAN,
-        stats: &stats,
-    };
-    Ok(RunRow::new(
-        Experiment::cell_label(&experiment.cell),
-        seed,
-        name,
-        experiment.resolution,
-        &measured,
-    ))
-}
-
 /// For each hit of a scan (its measured ranges, as [`hit_point`]s): the
 /// error `true hit − propagated mean` and the propagated covariance, for
 /// consistency checks against the simulator.
@@ -230,69 +187,6 @@ fn errors_against_truth(
             Some((t.point.coords - g.mean, g.covariance))
         })
         .collect()
-}
-
-/// One row of `summary.csv`: a method's mean and 95% interval of a metric
-/// over the seeds (Student t; a single seed has no interval).
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct SummaryRow {
-    /// The sweep cell.
-    pub cell: String,
-    /// The method.
-    pub method: String,
-    /// The metric (a `runs.csv` column).
-    pub metric: String,
-    /// Seeds with a finite value.
-    pub n: usize,
-    /// Mean over the seeds.
-    pub mean: f64,
-    /// Lower end of the 95% interval of the mean.
-    pub ci95_low: f64,
-    /// Upper end.
-    pub ci95_high: f64,
-}
-
-/// Per cell (in `cells` order), method and metric: mean and 95% interval
-/// over the rows' seeds.
-pub fn summarise(rows: &[RunRow], cells: &[String], methods: &[Method]) -> Vec<SummaryRow> {
-    let mut out = Vec::new();
-    for (cell, method) in cells
-        .iter()
-        .flat_map(|c| methods.iter().map(move |m| (c, m)))
-    {
-        let mine: Vec<&RunRow> = rows
-            .iter()
-            .filter(|r| &r.cell == cell && r.method == method.as_str())
-            .collect();
-        for (index, metric) in METRICS.iter().enumerate() {
-            if !metric.summarised() {
-                continue;
-            }
-            let values: Vec<f64> = mine
-                .iter()
-                .map(|r| r.values[index])
-                .filter(|v| v.is_finite())
-                .collect();
-            let n = values.len();
-            let mean = values.iter().sum::<f64>() / n as f64;
-            let half = if n >= 2 {
-                let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-                student_t_quantile((n - 1) as f64, 0.975) * (var / n as f64).sqrt()
-            } else {
-                f64::NAN
-            };
-            out.push(SummaryRow {
-                cell: cell.clone(),
-                method: method.as_str().into(),
-                metric: metric.name.into(),
-                n,
-                mean,
-                ci95_low: mean - half,
-                ci95_high: mean + half,
-            });
-        }
-    }
-    out
 }
 
 /// Reads the rows of an existing `runs.csv` (empty if absent).
@@ -476,12 +370,5 @@ mod tests {
         }
         assert!(pooled > 1000, "{pooled} pooled hits");
         assert!(wider * 10 > pooled, "{wider} of {pooled} with the slide");
-    }
-
-    #[test]
-    fn t_quantiles() {
-        assert!((student_t_quantile(1.0, 0.975) - 12.706).abs() < 1e-3);
-        assert!((student_t_quantile(9.0, 0.975) - 2.262).abs() < 1e-3);
-        assert!((student_t_quantile(1000.0, 0.975) - 1.962).abs() < 1e-3);
     }
 }

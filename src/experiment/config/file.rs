@@ -32,8 +32,10 @@ pub(super) struct ExperimentFile {
     pub(super) map: MapProbabilities,
     /// `[unscented]`: the scaled sigma-point set instead of the paper's.
     pub(super) unscented: Option<ScaledSetSpec>,
-    pub(super) seeds: Option<Vec<u64>>,
+    pub(super) seeds: Option<SeedsSpec>,
     pub(super) methods: Option<Vec<String>>,
+    /// The method the others are paired against (`paired.csv`).
+    pub(super) reference: Option<String>,
     pub(super) robot: MountSpec,
     #[serde(default)]
     pub(super) world_from_scene: PoseSpec,
@@ -72,6 +74,48 @@ impl PoolingSpec {
                 )
             }),
         }
+    }
+}
+
+/// `seeds` as written: a list (`[1, 2, 3]`) or an inclusive range
+/// (`"1..40"`, also written `"1..=40"`: forty seeds).
+#[derive(Deserialize)]
+#[serde(untagged)]
+pub(super) enum SeedsSpec {
+    List(Vec<u64>),
+    Range(String),
+}
+
+impl SeedsSpec {
+    /// The seeds, or what to write instead; a range of more than `most`
+    /// seeds is refused before it is made.
+    pub(super) fn seeds(&self, most: u64) -> std::result::Result<Vec<u64>, String> {
+        let text = match self {
+            SeedsSpec::List(seeds) => return Ok(seeds.clone()),
+            SeedsSpec::Range(text) => text,
+        };
+        let usage = || {
+            format!(
+                "seeds = \"{text}\": write a list (seeds = [1, 2, 3]) or an inclusive range of \
+                 whole numbers (seeds = \"1..40\" is the forty seeds 1 to 40)"
+            )
+        };
+        let (first, last) = text.split_once("..").ok_or_else(usage)?;
+        let last = last.strip_prefix('=').unwrap_or(last);
+        let first: u64 = first.trim().parse().map_err(|_| usage())?;
+        let last: u64 = last.trim().parse().map_err(|_| usage())?;
+        if last < first {
+            return Err(format!(
+                "seeds = \"{text}\": the range is empty (its last seed {last} is below its first {first})"
+            ));
+        }
+        if last - first >= most {
+            return Err(format!(
+                "seeds = \"{text}\" is {} seeds; sigmap runs at most {most} seeds per experiment",
+                u128::from(last - first) + 1
+            ));
+        }
+        Ok((first..=last).collect())
     }
 }
 

@@ -1,4 +1,4 @@
-use super::file::{PoolingSpec, SwitchSpec};
+use super::file::{PoolingSpec, SeedsSpec, SwitchSpec};
 use super::*;
 use crate::mapping::pooling::Pooling;
 
@@ -182,4 +182,79 @@ fn a_minimal_file_takes_the_documented_defaults() {
     // The scaled sigma-point set's defaults: β = 2, κ = 0.
     let scaled: super::file::ScaledSetSpec = toml::from_str("alpha = 0.5").unwrap();
     assert_eq!((scaled.beta, scaled.kappa), (2.0, 0.0));
+}
+
+#[test]
+fn seeds_read_a_list_or_an_inclusive_range() {
+    #[derive(Deserialize)]
+    struct File {
+        seeds: SeedsSpec,
+    }
+    let read = |text: &str| toml::from_str::<File>(text).unwrap().seeds.seeds(1000);
+    assert_eq!(read("seeds = [3, 1]"), Ok(vec![3, 1]));
+    assert_eq!(read("seeds = \"1..40\""), Ok((1..=40).collect()));
+    assert_eq!(read("seeds = \"1..=40\"").unwrap().len(), 40);
+    assert_eq!(read("seeds = \" 7 .. 7 \""), Ok(vec![7]));
+    for bad in ["\"1-40\"", "\"a..b\"", "\"1..\"", "\"-1..3\""] {
+        let error = read(&format!("seeds = {bad}")).unwrap_err();
+        assert!(error.contains("inclusive range"), "{bad}: {error}");
+    }
+    assert!(read("seeds = \"5..4\"").unwrap_err().contains("empty"));
+    // An absurd range is refused before a seed is made.
+    let error = read("seeds = \"0..18446744073709551615\"").unwrap_err();
+    assert!(error.contains("18446744073709551616 seeds"), "{error}");
+    assert!(read("seeds = \"1..1000\"").is_ok());
+    assert!(read("seeds = \"1..1001\"").is_err());
+}
+
+#[test]
+fn the_reference_is_a_listed_method_and_defaults_to_the_ray_update() {
+    use crate::experiment::model::Method::*;
+    assert_eq!(
+        reference_method(None, &[Blind, Unscented, RayUpdate]),
+        Ok(RayUpdate)
+    );
+    assert_eq!(reference_method(None, &[Unscented, Blind]), Ok(Unscented));
+    assert_eq!(
+        reference_method(Some("blind"), &[Unscented, Blind]),
+        Ok(Blind)
+    );
+    let error = reference_method(Some("jacobian"), &[Unscented, Blind]).unwrap_err();
+    assert!(
+        error.contains("not one of `methods` (unscented, blind)"),
+        "{error}"
+    );
+    let error = reference_method(Some("octomap"), &[Unscented]).unwrap_err();
+    assert!(
+        error.starts_with("reference: unknown method 'octomap'"),
+        "{error}"
+    );
+}
+
+#[test]
+fn an_experiment_file_with_a_seed_range_and_a_reference_loads() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
+        .unwrap()
+        .replace("\"../", &format!("\"{root}/"))
+        .replace("profiles/", &format!("{root}/experiments/profiles/"))
+        .replace(
+            "seeds = [1, 2, 3]",
+            "seeds = \"11..14\"\nreference = \"blind\"",
+        );
+    let path = dir.path().join("e.toml");
+    std::fs::write(&path, &text).unwrap();
+    let experiment = Experiment::load(&path).unwrap();
+    assert_eq!(experiment.seeds, vec![11, 12, 13, 14]);
+    assert_eq!(
+        experiment.reference,
+        crate::experiment::model::Method::Blind
+    );
+    std::fs::write(&path, text.replace("\"11..14\"", "\"11..x\"")).unwrap();
+    let error = Experiment::load(&path).err().unwrap().to_string();
+    assert!(
+        error.contains("e.toml") && error.contains("seeds = \"11..x\""),
+        "{error}"
+    );
 }

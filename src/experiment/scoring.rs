@@ -1,0 +1,121 @@
+//! Scoring maps built elsewhere (`sigmap score`): against the run of an
+//! experiment, exactly as `sigmap run` scores its own maps, or against a
+//! known scene with the observable mask of recorded scans — the path for
+//! real scans of a workcell whose CAD model is known.
+
+use super::metrics::{Measured, RunRow};
+use super::runner::{ground_truth, observable};
+use super::{simulate, Experiment};
+use crate::error::{Error, Result};
+use crate::eval::ground_truth::{check_resolution, voxelise_in};
+use crate::eval::observable::{observable_along, SeenRay};
+use crate::eval::scores::score_map;
+use crate::geometry::{Isometry3, Point3};
+use crate::mapping::scan_graph::ScanNode;
+use crate::mapping::Octree;
+use crate::sim::scene::Scene;
+
+/// The row of `map` scored against `truth` over `observable`.
+fn row_of(
+    map: &Octree,
+    truth: &Octree,
+    observable: &rustc_hash::FxHashSet<u64>,
+    (cell, seed, name): (String, u64, &str),
+) -> RunRow {
+    let scores = score_map(map, truth, observable);
+    let stats = map.stats();
+    let measured = Measured {
+        scores: &scores,
+        consistency: None,
+        nees_point: f64::NAN,
+        stats: &stats,
+    };
+    RunRow::new(cell, seed, name, map.resolution(), &measured)
+}
+
+/// Refuses a map whose resolution is not `wanted`, saying what to do.
+fn check_map_resolution(map: &Octree, wanted: f64, what: &str) -> Result<()> {
+    if (map.resolution() - wanted).abs() > 1e-9 * wanted {
+        return Err(Error::Usage(format!(
+            "the map's resolution is {} m, {what} {wanted} m: build the map at {wanted} m \
+             (graph2tree -res, sigmap map --resolution)",
+            map.resolution()
+        )));
+    }
+    Ok(())
+}
+
+/// Scores a map built elsewhere (any OctoMap file) against the run of
+/// `experiment` with `seed`, with the ground truth and observable mask
+/// `sigmap run` uses, as a runs.csv row whose method is `name`. The map must
+/// be in the run's map frame (the scene frame shifted by
+/// `Experiment::map_offset`, which `sigmap export` applies) at the
+/// experiment's resolution; another resolution is refused.
+pub fn score_external(
+    experiment: &Experiment,
+    seed: u64,
+    map: &Octree,
+    name: &str,
+) -> Result<RunRow> {
+    check_map_resolution(map, experiment.resolution, "the experiment's")?;
+    let run = simulate(experiment, seed, |_| {})?;
+    let offset = experiment.map_offset(seed);
+    let observable = observable(experiment, &run.truth.scans, &offset);
+    let truth = ground_truth(experiment, seed);
+    let cell = Experiment::cell_label(&experiment.cell);
+    let mut row = row_of(map, &truth, &observable, (cell, seed, name));
+    row.resolution = experiment.resolution;
+    Ok(row)
+}
+
+/// The rays of recorded scans as the observable mask takes them: from each
+/// node's origin to each of its points in the map frame; a point farther
+/// than `max_range` from its origin is a beam that returned nothing, cut at
+/// `max_range` with no surface seen (as `graph2tree -m` and
+/// `sigmap export`'s no-return points have it); without `max_range` every
+/// point is a hit.
+pub fn recorded_rays(
+    nodes: &[ScanNode],
+    max_range: Option<f64>,
+) -> impl Iterator<Item = SeenRay> + '_ {
+    nodes.iter().flat_map(move |node| {
+        let origin = Point3::from(node.map_from_sensor.translation.vector);
+        node.points.iter().map(move |p| {
+            let end = node.map_from_sensor * p;
+            match max_range {
+                Some(reach) if p.coords.norm() > reach => SeenRay {
+                    origin,
+                    end: origin + (end - origin) * (reach / p.coords.norm()),
+                    hit: false,
+                },
+                _ => SeenRay {
+                    origin,
+                    end,
+                    hit: true,
+                },
+            }
+        })
+    })
+}
+
+/// Scores a map of recorded scans against a known scene: the ground truth is
+/// the scene's solids placed in the map frame by `map_from_scene` at the
+/// map's resolution, the observable mask the cells the recorded rays
+/// crossed or ended in ([`recorded_rays`]). Returns the row (method `name`,
+/// seed 0, no cell).
+pub fn score_against_scene(
+    map: &Octree,
+    scene: &Scene,
+    map_from_scene: &Isometry3,
+    nodes: &[ScanNode],
+    max_range: Option<f64>,
+    name: &str,
+) -> Result<RunRow> {
+    check_resolution(scene, map.resolution())?;
+    let truth = voxelise_in(scene, map.resolution(), map_from_scene);
+    let observable = observable_along(recorded_rays(nodes, max_range), map.resolution());
+    Ok(row_of(map, &truth, &observable, (String::new(), 0, name)))
+}
+
+#[cfg(test)]
+mod tests;
