@@ -4,6 +4,7 @@
 use super::{progress_bar, with_threads, MergeArgs, RunArgs};
 use crate::error::{Error, Result};
 use crate::experiment::batch::{merge_shards, run_experiment, RunOptions};
+use crate::experiment::report::HEADLINE;
 use crate::experiment::summary::{PairedRow, SummaryRow};
 use crate::experiment::Experiment;
 use indicatif::ProgressBar;
@@ -92,16 +93,6 @@ fn print_headline(experiment: &Experiment, summary: &[SummaryRow], rows: usize) 
     }
 }
 
-/// The metrics of the paired table: (column, title, digits).
-const PAIRED: [(&str, &str, usize); 6] = [
-    ("precision", "precision", 3),
-    ("recall", "recall", 3),
-    ("f1", "F1", 3),
-    ("false_free_rate", "false-free", 4),
-    ("unknown_fraction", "unknown", 3),
-    ("brier", "Brier", 3),
-];
-
 /// The first cell's paired comparisons: per method but the reference, each
 /// metric's mean per-seed difference, its 95% interval and the verdict.
 fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
@@ -118,7 +109,7 @@ fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
         .iter()
         .filter(|&&m| m != experiment.reference)
     {
-        for (metric, title, digits) in PAIRED {
+        for (metric, title, digits) in HEADLINE {
             let Some(p) = paired
                 .iter()
                 .find(|p| p.cell == first && p.method == method.as_str() && p.metric == metric)
@@ -127,7 +118,7 @@ fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
             };
             println!(
                 "{:<11} {:<11} {:>+9.digits$} [{:>+9.digits$}, {:>+9.digits$}]  {}",
-                if metric == PAIRED[0].0 {
+                if metric == HEADLINE[0].0 {
                     method.as_str()
                 } else {
                     ""

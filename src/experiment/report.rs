@@ -14,8 +14,9 @@ use crate::files::write_file;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// The metrics of the headline table: (column, title, digits).
-const HEADLINE: [(&str, &str, usize); 8] = [
+/// The metrics of the headline tables (the report's and the terminal's):
+/// (column, title, digits).
+pub const HEADLINE: [(&str, &str, usize); 8] = [
     ("precision", "precision", 3),
     ("recall", "recall", 3),
     ("f1", "F1", 3),

@@ -239,6 +239,34 @@ pub fn write_rows<T: Serialize>(path: &std::path::Path, rows: &[T]) -> Result<()
     crate::files::write_file(path, &bytes)
 }
 
+/// The quickstart with the error profile `profile` (its TOML after the
+/// name), `grid_offset = true`, and `extra` appended to the experiment's
+/// top-level keys; written into `dir` and loaded.
+#[cfg(test)]
+pub(crate) fn quickstart_with_profile(
+    dir: &std::path::Path,
+    profile: &str,
+    extra: &str,
+) -> Experiment {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let profile_path = dir.join("profile.toml");
+    std::fs::write(&profile_path, format!("name = \"test\"\n{profile}")).unwrap();
+    let text = std::fs::read_to_string(root.join("experiments/quickstart.toml"))
+        .unwrap()
+        .replace("\"../", &format!("\"{}/", root.display()))
+        .replace(
+            "profiles/collaborative.toml",
+            &profile_path.display().to_string(),
+        )
+        .replace(
+            "resolution = 0.01",
+            &format!("resolution = 0.01\ngrid_offset = true\n{extra}"),
+        );
+    let path = dir.join("experiment.toml");
+    std::fs::write(&path, text).unwrap();
+    Experiment::load(&path).unwrap()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -251,25 +279,12 @@ mod tests {
     /// The quickstart with only a scene-registration error (T_sw), large:
     /// arm and hand-eye exact.
     fn registration_only(dir: &Path) -> Experiment {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let profile = dir.join("registration.toml");
-        std::fs::write(
-            &profile,
-            "name = \"registration\"\n[range]\nsigma0 = 0.001\nk = 0.0\nangular_sigma = 0.0\n\
-             dropout = 0.0\n[world_from_scene]\nsigma = [0.004, 0.004, 0.004, 0.02, 0.02, 0.02]\n",
+        quickstart_with_profile(
+            dir,
+            "[range]\nsigma0 = 0.001\nk = 0.0\nangular_sigma = 0.0\ndropout = 0.0\n\
+             [world_from_scene]\nsigma = [0.004, 0.004, 0.004, 0.02, 0.02, 0.02]\n",
+            "",
         )
-        .unwrap();
-        let text = std::fs::read_to_string(root.join("experiments/quickstart.toml"))
-            .unwrap()
-            .replace("\"../", &format!("\"{}/", root.display()))
-            .replace(
-                "profiles/collaborative.toml",
-                &profile.display().to_string(),
-            )
-            .replace("resolution = 0.01", "resolution = 0.01\ngrid_offset = true");
-        let path = dir.join("experiment.toml");
-        std::fs::write(&path, text).unwrap();
-        Experiment::load(&path).unwrap()
     }
 
     #[test]

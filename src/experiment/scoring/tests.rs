@@ -1,33 +1,18 @@
 use super::*;
 use crate::experiment::export::scan_nodes;
 use crate::experiment::model::{MapperView, Method};
-use crate::experiment::runner::run_seed;
+use crate::experiment::runner::{quickstart_with_profile, run_seed};
 use crate::geometry::Vector3;
 use std::path::Path;
 
 /// The quickstart with an exact arm, hand-eye and registration and a
-/// noise-free sensor that drops nothing, `grid_offset` on: its believed
-/// scans are the true ones.
+/// noise-free sensor that drops nothing, `grid_offset` on: its
+/// believed scans are the true ones.
 fn exact_quickstart(dir: &Path) -> Experiment {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let profile = dir.join("exact.toml");
-    std::fs::write(
-        &profile,
-        "name = \"exact\"\n[range]\nsigma0 = 0.0\nk = 0.0\nangular_sigma = 0.0\ndropout = 0.0\n",
-    )
-    .unwrap();
-    let text = std::fs::read_to_string(root.join("experiments/quickstart.toml"))
-        .unwrap()
-        .replace("\"../", &format!("\"{}/", root.display()))
-        .replace(
-            "profiles/collaborative.toml",
-            &profile.display().to_string(),
-        )
-        .replace("resolution = 0.01", "resolution = 0.01\ngrid_offset = true")
-        .replace("seeds = [1, 2, 3]", "seeds = [2]");
-    let path = dir.join("experiment.toml");
-    std::fs::write(&path, text).unwrap();
-    Experiment::load(&path).unwrap()
+    let exact = "[range]\nsigma0 = 0.0\nk = 0.0\nangular_sigma = 0.0\ndropout = 0.0\n";
+    let experiment = quickstart_with_profile(dir, exact, "");
+    assert!(experiment.grid_offset);
+    experiment
 }
 
 #[test]
