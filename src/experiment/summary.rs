@@ -171,12 +171,10 @@ impl PairedDifference {
     /// verdict ranks the per-seed change of the distance to the target,
     /// `|m − t| − |r − t|`, by its own interval. `None` when no seed pairs.
     pub fn of(method: &[(u64, f64)], reference: &[(u64, f64)], better: Better) -> Option<Self> {
+        let by_seed: std::collections::BTreeMap<u64, f64> = reference.iter().copied().collect();
         let pairs: Vec<(f64, f64)> = method
             .iter()
-            .filter_map(|(seed, m)| {
-                let (_, r) = reference.iter().find(|(s, _)| s == seed)?;
-                Some((*m, *r))
-            })
+            .filter_map(|(seed, m)| Some((*m, *by_seed.get(seed)?)))
             .filter(|(m, r)| m.is_finite() && r.is_finite())
             .collect();
         if pairs.is_empty() {
