@@ -350,18 +350,22 @@ fn score_against_a_scene_with_recorded_scans() {
     let scene = path(&common::root().join("scenes/tabletop.toml"));
     let csv = d.join("scene.csv");
     let map = path(&d.join("map.ot"));
-    let shown = sigmap_ok(&[
-        "score",
-        &map,
-        "--scene",
-        &scene,
-        "--scans",
-        &graph,
-        "--max-range",
-        "2.0",
-        "--csv",
-        &path(&csv),
-    ]);
+    let csv_path = path(&csv);
+    // `sigmap score` of the map against the scene, the row appended to `csv`.
+    let score_scene = |extra: &[&str]| {
+        let head = [
+            "score",
+            &map,
+            "--scene",
+            &scene,
+            "--scans",
+            &graph,
+            "--max-range",
+            "2.0",
+        ];
+        sigmap_ok(&[&head[..], extra, &["--csv", &csv_path]].concat())
+    };
+    let shown = score_scene(&[]);
     assert!(shown.contains("against scene"), "{shown}");
     let mut reader = csv::Reader::from_path(&csv).unwrap();
     let header = reader.headers().unwrap().clone();
@@ -389,20 +393,7 @@ fn score_against_a_scene_with_recorded_scans() {
     );
     assert!((cells.0 / cells.1 - 1.0).abs() < 0.05, "{cells:?}");
     // The scene moved 5 cm in the map frame: the map no longer fits it.
-    let moved = sigmap_ok(&[
-        "score",
-        &map,
-        "--scene",
-        &scene,
-        "--scans",
-        &graph,
-        "--max-range",
-        "2.0",
-        "--scene-pose",
-        "0.05,0,0,0,0,0",
-        "--csv",
-        &path(&csv),
-    ]);
+    let moved = score_scene(&["--scene-pose", "0.05,0,0,0,0,0"]);
     assert!(moved.contains("f1"), "{moved}");
     let rows: Vec<csv::StringRecord> = csv::Reader::from_path(&csv)
         .unwrap()

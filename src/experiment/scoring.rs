@@ -82,10 +82,11 @@ pub fn recorded_rays(
         let origin = Point3::from(node.map_from_sensor.translation.vector);
         node.points.iter().map(move |p| {
             let end = node.map_from_sensor * p;
+            let length = p.coords.norm();
             match max_range {
-                Some(reach) if p.coords.norm() > reach => SeenRay {
+                Some(reach) if length > reach => SeenRay {
                     origin,
-                    end: origin + (end - origin) * (reach / p.coords.norm()),
+                    end: origin + (end - origin) * (reach / length),
                     hit: false,
                 },
                 _ => SeenRay {
