@@ -1,6 +1,6 @@
 //! Every shipped experiment loads with each of its sweep cells applied (a
 //! broken file would otherwise surface only when a user runs it), and the
-//! README's table of shipped experiments names exactly the files in
+//! table of shipped experiments in docs/results.md names exactly the files in
 //! `experiments/`.
 
 use sigmap::experiment::Experiment;
@@ -34,11 +34,11 @@ fn every_shipped_experiment_loads_in_every_sweep_cell() {
 }
 
 #[test]
-fn the_readme_lists_every_shipped_experiment() {
-    let readme = std::fs::read_to_string(Path::new(ROOT).join("README.md")).unwrap();
+fn the_results_page_lists_every_shipped_experiment() {
+    let readme = std::fs::read_to_string(Path::new(ROOT).join("docs/results.md")).unwrap();
     let start = readme
-        .find("### Shipped experiments")
-        .expect("README has a table of shipped experiments");
+        .find("## Shipped experiments")
+        .expect("docs/results.md has a table of shipped experiments");
     // The table: the rows up to the first blank line after its header.
     let table = readme[start..]
         .lines()
@@ -52,5 +52,9 @@ fn the_readme_lists_every_shipped_experiment() {
             listed.insert(name.to_string());
         }
     }
-    assert_eq!(listed, shipped(), "README table against experiments/*.toml");
+    assert_eq!(
+        listed,
+        shipped(),
+        "docs/results.md table against experiments/*.toml"
+    );
 }

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Paired one-core rounds against OctoMap: how the ratios under issue 13's
-# targets (README, "Insertion speed against OctoMap") are measured.
+# targets (docs/results.md, "Insertion speed against OctoMap") are measured.
 #
 #   bash benches/octomap/paired.sh [EXPERIMENT] [RESOLUTION]
 #

@@ -322,7 +322,7 @@ pub(crate) struct ScoreArgs {
 
 #[derive(Args, Debug)]
 pub(crate) struct PropagateArgs {
-    /// The chain file (TOML; see README, "Chain file").
+    /// The chain file (TOML; see docs/cli.md, "Chain file").
     chain: PathBuf,
     /// The measured point `x,y,z` in the last frame (m), replacing the file's
     /// `[point]` mean (its covariance is kept; zero if the file has none).
@@ -344,7 +344,7 @@ pub(crate) struct PropagateArgs {
     /// Monte Carlo seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Print JSON (the stable schema of README) instead of a table.
+    /// Print JSON (the stable schema of docs/cli.md) instead of a table.
     #[arg(long)]
     json: bool,
     /// Sweep every link's rotation sigma from 0.001 to 0.2 rad and write each

@@ -104,7 +104,7 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
     let mut manifest = String::new();
     let _ = writeln!(
         manifest,
-        "# sigmap {} scan set; see README, \"Scan files\".",
+        "# sigmap {} scan set; see docs/files.md, \"Scan files\".",
         env!("CARGO_PKG_VERSION")
     );
     let _ = writeln!(

@@ -144,7 +144,7 @@ fn spec(sigma: &Option<Vec<f64>>, covariance: &Option<Vec<Vec<f64>>>) -> Covaria
     }
 }
 
-/// Reads a chain file (the `sigmap propagate` format, see README): the chain
+/// Reads a chain file (the `sigmap propagate` format, see docs/cli.md): the chain
 /// and, if the file has a `[point]`, the measurement.
 pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainPoint>)> {
     let file: ChainFile = read_toml(path)?;

@@ -143,7 +143,7 @@ fn sweep_cells_and_overrides() {
     );
 }
 
-/// What an experiment file may leave out takes the defaults README.md
+/// What an experiment file may leave out takes the defaults docs/files.md
 /// documents ("Experiment file").
 #[test]
 fn a_minimal_file_takes_the_documented_defaults() {

@@ -123,7 +123,7 @@ fn matches_monte_carlo_within_its_standard_errors() {
     // 5 SE; each covariance entry within 5 SE plus 1% of √(Σ_ii Σ_jj), the
     // fourth-order error the paper's wide set (±√21 σ) is allowed below 1°
     // (docs/math.md §3.6). Measured: the set overestimates σ_z² by 2.3% here and by
-    // 9% at 2°, while the Jacobian stays within 2.2%: see README, "What we found".
+    // 9% at 2°, while the Jacobian stays within 2.2%: see docs/results.md, "Propagation".
     let chain = paper_chain(0.002, 1f64.to_radians());
     let p = point();
     let n = 200_000;
