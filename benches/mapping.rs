@@ -12,10 +12,11 @@
 //! `bash benches/octomap/compare.sh`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use sigmap::experiment::model::{build_map, measured_ranges, MapperView, Method};
 use sigmap::experiment::{simulate, Experiment};
 use sigmap::geometry::Vector3;
+use sigmap::mapping::measured::measured_ranges;
 use sigmap::mapping::pooling::Pooling;
+use sigmap::mapping::{build_map, Method};
 use std::hint::black_box;
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -29,7 +30,7 @@ fn bench(c: &mut Criterion) {
     )))
     .expect("quickstart");
     let run = simulate(&experiment, 1, |_| {}).expect("simulate");
-    let view = MapperView::of(&experiment);
+    let view = experiment.mapper_view();
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -119,12 +120,12 @@ fn bench(c: &mut Criterion) {
     );
     for pooling in [Pooling::Faces, Pooling::Windows] {
         experiment.map.beam_pooling = pooling;
-        let view = MapperView::of(&experiment);
+        let view = experiment.mapper_view();
         let pool_scans = |pool: &rayon::ThreadPool| {
             pool.install(|| {
                 mean_seconds(|| {
                     for scan in &run.scans {
-                        black_box(measured_ranges(&view, scan));
+                        black_box(measured_ranges(&view, &experiment.scanner.layout, scan).ok());
                     }
                 })
             })
@@ -157,7 +158,7 @@ fn two_cores_on_the_octomap_bench(one: &rayon::ThreadPool, two: &rayon::ThreadPo
     )))
     .expect("octomap_bench");
     let run = simulate(&experiment, 1, |_| {}).expect("simulate");
-    let view = MapperView::of(&experiment);
+    let view = experiment.mapper_view();
     let build = |pool: &rayon::ThreadPool, method| {
         pool.install(|| {
             build_map(&view, &run.scans, method, 0.05, &Vector3::zeros()).expect("the bench maps")

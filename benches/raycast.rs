@@ -31,7 +31,7 @@ fn rays(experiment: &Experiment) -> Vec<(Point3, Vector3)> {
             let origin = Point3::from(pose.translation.vector);
             experiment
                 .scanner
-                .directions
+                .directions()
                 .iter()
                 .map(move |d| (origin, pose.rotation * d))
         })

@@ -10,7 +10,7 @@
 //! above it (over-confident).
 
 use sigmap::experiment::{simulate, Experiment};
-use sigmap::sim::scan::BeamStatus;
+use sigmap::mapping::scan::BeamStatus;
 use sigmap::uncertainty::consistency::ConsistencyReport;
 use sigmap::uncertainty::{
     BlindPropagator, Gaussian3, JacobianPropagator, Propagator, SigmaSet, UncertainChain,
@@ -26,7 +26,7 @@ fn propagated_covariances_are_consistent_with_the_simulated_truth() {
     )))
     .unwrap();
     experiment.viewpoints.truncate(1);
-    let centre = experiment.scanner.directions.len() / 2;
+    let centre = experiment.scanner.directions().len() / 2;
     let runs = 200;
     let mut errors: [Vec<(nalgebra::Vector3<f64>, Gaussian3)>; 3] = Default::default();
     for seed in 0..runs {
@@ -35,7 +35,7 @@ fn propagated_covariances_are_consistent_with_the_simulated_truth() {
         let beam = (centre..scan.measurements.len())
             .find(|&i| scan.measurements[i].status == BeamStatus::Hit)
             .unwrap();
-        let d = experiment.scanner.directions[beam];
+        let d = experiment.scanner.directions()[beam];
         let r = scan.measurements[beam].range;
         let point = UncertainPoint {
             mean: d * r,

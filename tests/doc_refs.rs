@@ -258,39 +258,66 @@ fn the_reference_parsers_find_what_they_must() {
 
 #[test]
 fn map_building_cannot_name_the_truth() {
-    // `build_map` takes a `MapperView` (scanner, range model, map settings)
-    // and `Scan`s (measurements, believed chain); the truth is `ScanTruth` /
-    // `RunTruth`, the scene is `Scene`. The map builder's library code must
-    // name none of them (docs/architecture.md).
-    let path = Path::new(ROOT).join("src/experiment/model.rs");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let library = text.split("#[cfg(test)]").next().unwrap();
+    // `build_map` takes a `MapperView` (beam layouts, range model, map
+    // settings) and `Scan`s (measurements, believed chain); the truth is
+    // `ScanTruth` / `RunTruth`, the scene is `Scene`. The map builder lives
+    // in `mapping`, which may not import `sim` (the layering test), and its
+    // library code names none of them (docs/architecture.md).
+    let mapping = Path::new(ROOT).join("src/mapping");
+    let library = |name: &str| {
+        let text = std::fs::read_to_string(mapping.join(name)).unwrap();
+        text.split("#[cfg(test)]").next().unwrap().to_string()
+    };
     assert!(
-        library.contains("pub fn build_map("),
-        "model.rs builds maps"
+        library("build.rs").contains("pub fn build_map("),
+        "mapping/build.rs builds maps"
     );
     // The truth's types by name (`Method::RegisteredTruth`, a reference the
     // runner builds from the truth, is only a name here).
-    for word in [
-        "ScanTruth",
-        "RunTruth",
-        "BeamTruth",
-        "truth::",
-        ".truth",
-        "SimulatedRun",
-        "Scene",
-        "experiment.scene",
-    ] {
-        assert!(
-            !library.contains(word),
-            "src/experiment/model.rs names `{word}`: the truth and the scene must not reach a mapper"
-        );
+    for file in ["build.rs", "measured.rs", "method.rs", "scan.rs"] {
+        let library = library(file);
+        for word in [
+            "ScanTruth",
+            "RunTruth",
+            "BeamTruth",
+            "truth::",
+            ".truth",
+            "SimulatedRun",
+            "Scene",
+            "experiment.scene",
+        ] {
+            assert!(
+                !library.contains(word),
+                "src/mapping/{file} names `{word}`: the truth and the scene must not reach a mapper"
+            );
+        }
     }
-    let scan = std::fs::read_to_string(Path::new(ROOT).join("src/sim/scan.rs")).unwrap();
+    let scan = library("scan.rs");
     let fields = scan
         .split("pub struct Scan {")
         .nth(1)
         .and_then(|rest| rest.split("\n}").next())
-        .expect("sim/scan.rs defines Scan");
+        .expect("mapping/scan.rs defines Scan");
     assert!(!fields.contains("Truth"), "Scan carries the truth:{fields}");
+    // One map builder: no other file of the library dispatches on methods
+    // to build a map.
+    let mut paths = Vec::new();
+    files(&Path::new(ROOT).join("src"), &mut paths);
+    for path in paths {
+        let text = std::fs::read_to_string(&path).unwrap();
+        let library = text.split("#[cfg(test)]").next().unwrap();
+        let builds = ["RayUpdater::new(", "merge_options()", "take_shared_motion("];
+        if path.ends_with("src/mapping/build.rs")
+            || path.components().any(|c| c.as_os_str() == "tests")
+        {
+            continue;
+        }
+        for call in builds {
+            assert!(
+                !library.contains(call),
+                "{} calls `{call}`: maps are built by mapping::build_map alone",
+                path.display()
+            );
+        }
+    }
 }

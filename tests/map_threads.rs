@@ -3,10 +3,10 @@
 //! must not depend on how the work was split or which thread came first;
 //! nor must the beam pooling's parallel windows, nor the surface samples).
 
-use sigmap::experiment::model::{build_map, MapperView, Method};
 use sigmap::experiment::{simulate, Experiment};
 use sigmap::geometry::Vector3;
 use sigmap::mapping::pooling::Pooling;
+use sigmap::mapping::{build_map, Method};
 use std::path::Path;
 
 #[test]
@@ -40,7 +40,7 @@ fn a_map_is_the_same_on_one_thread_and_on_three() {
     for (pooling, resolution, method, samples) in cases {
         experiment.map.beam_pooling = pooling;
         experiment.map.interpolate_beams = samples;
-        let view = MapperView::of(&experiment);
+        let view = experiment.mapper_view();
         let build = |pool: &rayon::ThreadPool| {
             pool.install(|| {
                 build_map(&view, &run.scans, method, resolution, &Vector3::zeros())

@@ -3,7 +3,6 @@
 use super::{progress_bar, with_threads, ExportArgs};
 use crate::error::Result;
 use crate::experiment::export::{graph2tree_command, write_export};
-use crate::experiment::model::MapperView;
 use crate::experiment::{self, Experiment};
 use std::path::PathBuf;
 
@@ -31,7 +30,7 @@ pub(crate) fn run(args: ExportArgs) -> Result<()> {
             format!(", cell {label}")
         }
     );
-    let view = MapperView::of(&experiment);
+    let view = experiment.mapper_view();
     let offset = experiment.map_offset(seed);
     write_export(
         &out,

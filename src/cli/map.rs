@@ -4,13 +4,14 @@
 
 use super::{progress_bar, resolution_arg, with_threads, MapArgs};
 use crate::error::{Error, Result};
-use crate::experiment::model::{build_map, MapperView, Method, REGISTERED_TRUTH_FROM_SCANS};
 use crate::experiment::recorded::{map_recorded, read_scan_graph, RecordedOptions};
 use crate::experiment::runner::registered_truth;
 use crate::experiment::{self, write_rays, Experiment};
+use crate::mapping::method::REGISTERED_TRUTH_FROM_SCANS;
 use crate::mapping::octomap_io::{check_octree_path, write_octree};
 use crate::mapping::octree::Octree;
 use crate::mapping::settings::MapSettings;
+use crate::mapping::{build_map, Method};
 use crate::sim::profile::ErrorProfile;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -34,7 +35,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         experiment.map.beam_pooling = pooling;
     }
     if args.interpolate_beams && !experiment.map.interpolate_beams {
-        crate::experiment::check_sample_budget(experiment.scanner.directions.len() as f64)
+        crate::mapping::scan::check_sample_budget(experiment.scanner.directions().len() as f64)
             .map_err(|e| Error::input(path, format!("--interpolate-beams: {e}")))?;
         experiment.map.interpolate_beams = true;
     }
@@ -58,7 +59,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
     })??;
     bar.finish_and_clear();
-    let view = MapperView::of(&experiment);
+    let view = experiment.mapper_view();
     if let Some(path) = &args.export_rays {
         write_rays(path, &view, &run.scans)?;
     }

@@ -171,7 +171,7 @@ pub(crate) struct MapArgs {
     /// registered_truth (the truth as the run's scene registration places
     /// it; not for --scans).
     #[arg(long, default_value = "unscented")]
-    method: crate::experiment::model::Method,
+    method: crate::mapping::Method,
     /// Finest voxel edge (m) [default: the experiment's `resolution`; with
     /// --scans 0.1, as graph2tree].
     #[arg(long)]

@@ -107,7 +107,7 @@ fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
     for method in experiment
         .methods
         .iter()
-        .filter(|&&m| m != experiment.reference)
+        .filter(|&m| *m != experiment.reference)
     {
         for (metric, title, digits) in HEADLINE {
             let Some(p) = paired

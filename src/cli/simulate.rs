@@ -28,7 +28,7 @@ pub(crate) fn run(args: SimulateArgs) -> Result<()> {
         .map(|s| {
             s.measurements
                 .iter()
-                .filter(|m| m.status == crate::sim::scan::BeamStatus::Hit)
+                .filter(|m| m.status == crate::mapping::scan::BeamStatus::Hit)
                 .count()
         })
         .sum();

@@ -5,10 +5,10 @@
 //! merge never reuses results of other inputs; docs/architecture.md).
 
 use super::journal::{fingerprint, journal_record, read_journal, Inputs, Wanted};
-use super::model::Method;
 use super::runner::{ground_truth, read_rows, run_seed, write_rows, RunRow, TimingRow};
 use super::summary::{paired, summarise, PairedRow, SummaryRow};
 use super::Experiment;
+use super::RunMethod;
 use super::{plots, report};
 use crate::error::{Error, Result};
 use crate::mapping::octomap_io::write_octree;
@@ -177,7 +177,7 @@ pub fn run_experiment(
                     let pairs: Vec<_> = experiment
                         .methods
                         .iter()
-                        .copied()
+                        .cloned()
                         .zip(maps.iter())
                         .collect();
                     plots::plot_slice(
@@ -261,7 +261,7 @@ fn finalize(
     mut rows: Vec<RunRow>,
     mut timings: Vec<TimingRow>,
 ) -> Result<(Study, Vec<PathBuf>)> {
-    let methods: &[Method] = &experiment.methods;
+    let methods: &[RunMethod] = &experiment.methods;
     let method_order = |m: &str| {
         methods
             .iter()
@@ -278,7 +278,7 @@ fn finalize(
     write_rows(&out.join("timings.csv"), &timings)?;
     let summary = summarise(&rows, labels, methods);
     write_rows(&out.join("summary.csv"), &summary)?;
-    let paired = paired(&rows, labels, methods, experiment.reference);
+    let paired = paired(&rows, labels, methods, &experiment.reference);
     write_rows(&out.join("paired.csv"), &paired)?;
     let mut charts = plots::plot_scores(
         &out.join("scores.svg"),
@@ -417,7 +417,7 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
             experiment
                 .seeds
                 .iter()
-                .flat_map(move |s| methods.iter().map(move |m| (c, *s, *m)))
+                .flat_map(move |s| methods.iter().map(move |m| (c, *s, m)))
         })
         .filter(|(c, s, m)| !have.contains(&((*c).clone(), *s, m.as_str().to_string())))
         .map(|(c, s, m)| format!("cell '{c}' seed {s} {m}"))

@@ -1,8 +1,10 @@
 //! The experiment file: what is simulated (scene, robot and mount, sensor,
 //! error profile, viewpoints, seed). Paths are relative to the experiment file.
 
+use super::run_method::RunMethod;
 use crate::error::{read_toml_with, Error, Result};
 use crate::geometry::{Isometry3, Pose, Vector3};
+use crate::mapping::scan::{check_sample_budget, Layouts, MapperView};
 use crate::mapping::settings::MapSettings;
 use crate::sim::ik::{self, IkOptions, IkTarget};
 use crate::sim::profile::ErrorProfile;
@@ -97,13 +99,13 @@ pub struct Experiment {
     pub sigma_set: SigmaSet,
     /// The seeds of `sigmap run` (`seeds = [..]`, default `[seed]`).
     pub seeds: Vec<u64>,
-    /// The modelling methods compared by `sigmap run`
-    /// (default blind, unscented, ray_update).
-    pub methods: Vec<super::model::Method>,
+    /// The modelling methods compared by `sigmap run`: `methods` (default
+    /// blind, unscented, ray_update), then the `[[mapper]]` tables.
+    pub methods: Vec<RunMethod>,
     /// The method every other one is paired against in `paired.csv`
     /// (`reference = ".."`; default `ray_update` when listed, else the
     /// first method).
-    pub reference: super::model::Method,
+    pub reference: RunMethod,
     /// The workcell scene.
     pub scene: Scene,
     /// The robot.
@@ -292,9 +294,9 @@ impl Experiment {
         }
         let methods = match &file.methods {
             None => vec![
-                super::model::Method::Blind,
-                super::model::Method::Unscented,
-                super::model::Method::RayUpdate,
+                crate::mapping::Method::Blind,
+                crate::mapping::Method::Unscented,
+                crate::mapping::Method::RayUpdate,
             ],
             Some(names) => names
                 .iter()
@@ -307,26 +309,38 @@ impl Experiment {
         if let Some(method) = first_repeat(&methods) {
             return Err(bad(format!("`methods` lists {method} more than once")));
         }
+        let builds_grids = methods.iter().any(|m| m.builds_grids());
+        let mut methods: Vec<RunMethod> = methods.into_iter().map(RunMethod::Own).collect();
+        let folder = path.parent().unwrap_or(Path::new("."));
+        for spec in file.mappers {
+            let taken: Vec<&str> = crate::mapping::Method::ALL
+                .iter()
+                .map(|m| m.as_str())
+                .chain(methods.iter().map(RunMethod::as_str))
+                .collect();
+            let mapper = spec.check(folder, &taken).map_err(&bad)?;
+            methods.push(RunMethod::External(std::sync::Arc::new(mapper)));
+        }
         let reference = reference_method(file.reference.as_deref(), &methods).map_err(&bad)?;
         let scanner = file.sensor.build().map_err(bad)?;
         if file.viewpoints.is_empty() {
             return Err(bad("the experiment has no [[viewpoint]]".into()));
         }
-        let beams = scanner.directions.len() as f64 * file.viewpoints.len() as f64;
+        let beams = scanner.directions().len() as f64 * file.viewpoints.len() as f64;
         if file.viewpoints.len() > MAX_VIEWPOINTS || beams > MAX_BEAMS_PER_RUN {
             return Err(bad(format!(
                 "{} viewpoints x {} beams = {beams:.3e} beams per run; sigmap handles at most \
                  {MAX_VIEWPOINTS} viewpoints and {MAX_BEAMS_PER_RUN:.0} beams per run \
                  (use fewer viewpoints or larger sensor steps)",
                 file.viewpoints.len(),
-                scanner.directions.len()
+                scanner.directions().len()
             )));
         }
         if map.interpolate_beams {
-            check_sample_budget(scanner.directions.len() as f64).map_err(&bad)?;
+            check_sample_budget(scanner.directions().len() as f64).map_err(&bad)?;
         }
         crate::eval::ground_truth::check_resolution(&scene, file.resolution)?;
-        if methods.iter().any(|m| m.builds_grids()) {
+        if builds_grids {
             scanner.check_clearing(file.resolution).map_err(bad)?;
         }
         let mut experiment = Self {
@@ -361,6 +375,19 @@ impl Experiment {
             experiment.viewpoints.push(viewpoint);
         }
         Ok(experiment)
+    }
+
+    /// What a mapper may know of this experiment: the scanner's beam
+    /// layout and reach, the range-error model, the map settings and the
+    /// sigma-point set. Neither the scene nor any truth.
+    pub fn mapper_view(&self) -> MapperView<'_> {
+        MapperView {
+            layouts: Layouts::Shared(&self.scanner.layout),
+            range: &self.profile.range,
+            max_range: self.scanner.max_range,
+            settings: &self.map,
+            sigma_set: self.sigma_set,
+        }
     }
 
     /// Where the map's grid sits relative to the scene for the run with
@@ -502,47 +529,30 @@ pub const MAX_BEAMS_PER_RUN: f64 = 16_000_000.0;
 /// Most seeds per experiment (a list or a range).
 pub const MAX_SEEDS: usize = 100_000;
 
-/// The reference of the paired comparisons: the method `named`, which
-/// `methods` must list; without a name `ray_update` when listed, else the
-/// first method.
+/// The reference of the paired comparisons: the method `named` (one of
+/// sigmap's or a `[[mapper]]`), which `methods` must list; without a name
+/// `ray_update` when listed, else the first method.
 fn reference_method(
     named: Option<&str>,
-    methods: &[super::model::Method],
-) -> std::result::Result<super::model::Method, String> {
-    use super::model::Method;
+    methods: &[RunMethod],
+) -> std::result::Result<RunMethod, String> {
+    let ray_update = RunMethod::Own(crate::mapping::Method::RayUpdate);
     match named {
-        Some(name) => {
-            let method: Method = name.parse().map_err(|e| format!("reference: {e}"))?;
-            if !methods.contains(&method) {
-                let listed: Vec<&str> = methods.iter().map(|m| m.as_str()).collect();
-                return Err(format!(
-                    "reference = \"{name}\" is not one of `methods` ({}); add it there or pick one of them",
+        Some(name) => methods
+            .iter()
+            .find(|m| m.as_str() == name)
+            .cloned()
+            .ok_or_else(|| {
+                let listed: Vec<&str> = methods.iter().map(RunMethod::as_str).collect();
+                format!(
+                    "reference = \"{name}\" is not one of `methods` or the [[mapper]] tables \
+                     ({}); add it there or pick one of them",
                     listed.join(", ")
-                ));
-            }
-            Ok(method)
-        }
-        None if methods.contains(&Method::RayUpdate) => Ok(Method::RayUpdate),
-        None => Ok(methods[0]),
+                )
+            }),
+        None if methods.contains(&ray_update) => Ok(ray_update),
+        None => Ok(methods[0].clone()),
     }
-}
-
-/// Refuses surface samples between beams (`interpolate_beams`) for a
-/// viewpoint of `beams` beams when beams and samples together would pass
-/// the per-viewpoint limit, before any grid is built.
-pub(crate) fn check_sample_budget(beams: f64) -> std::result::Result<(), String> {
-    use crate::mapping::spherical::SAMPLES_PER_BEAM;
-    use crate::sim::sensor::MAX_BEAMS_PER_VIEWPOINT;
-    let limit = MAX_BEAMS_PER_VIEWPOINT / (1 + SAMPLES_PER_BEAM) as f64;
-    if beams > limit {
-        return Err(format!(
-            "interpolate_beams: {beams:.0} beams per viewpoint would make up to {:.0} surface \
-             samples; with samples sigmap handles at most {limit:.0} beams per viewpoint (use \
-             larger sensor steps, or leave interpolate_beams off)",
-            beams * SAMPLES_PER_BEAM as f64
-        ));
-    }
-    Ok(())
 }
 
 /// The first value that appears twice.

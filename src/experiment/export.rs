@@ -3,13 +3,13 @@
 //! README saying what the frames are. Only what a real robot would record:
 //! the measurements and the nominal (believed) poses, never the truth.
 
-use super::model::{ray_inputs, MapperView};
 use super::write_ply;
 use crate::error::{Error, Result};
 use crate::files::write_folder;
 use crate::geometry::{Isometry3, Point3, Vector3};
+use crate::mapping::measured::ray_inputs;
+use crate::mapping::scan::{BeamStatus, MapperView, Scan};
 use crate::mapping::scan_graph::{to_scan_graph, ScanNode};
-use crate::sim::scan::{BeamStatus, Scan};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -23,17 +23,18 @@ pub const NO_RETURN_REACH: f64 = 2.0;
 /// the sensor frame (hits at their measured range, no-return beams at
 /// [`NO_RETURN_REACH`] maximum ranges; too-close and dropped beams left out).
 pub fn scan_nodes(view: &MapperView, scans: &[Scan], offset: &Vector3) -> Vec<ScanNode> {
-    let far = NO_RETURN_REACH * view.scanner.max_range;
+    let far = NO_RETURN_REACH * view.max_range;
     let map_from_scene = Isometry3::translation(offset.x, offset.y, offset.z);
     scans
         .iter()
-        .map(|scan| ScanNode {
+        .enumerate()
+        .map(|(i, scan)| ScanNode {
             id: scan.viewpoint as u32,
             map_from_sensor: map_from_scene * scan.chain.scene_from_camera(),
             points: scan
                 .measurements
                 .iter()
-                .zip(&view.scanner.directions)
+                .zip(&view.layouts.of(i).directions)
                 .filter_map(|(m, d)| match m.status {
                     BeamStatus::Hit => Some(Point3::from(d * m.range)),
                     BeamStatus::NoReturn => Some(Point3::from(d * far)),
@@ -69,7 +70,7 @@ pub fn write_export(
         let graph = dir.join("scans.graph");
         std::fs::write(&graph, to_scan_graph(&nodes)).map_err(|e| Error::io(&graph, e))?;
         let mut poses = format!("# timestamp tx ty tz qx qy qz qw (TUM): map_from_sensor per viewpoint (map = scene + {:?} m); timestamp = viewpoint index\n", [offset.x, offset.y, offset.z]);
-        for node in &nodes {
+        for (i, (node, scan)) in nodes.iter().zip(scans).enumerate() {
             let t = node.map_from_sensor.translation.vector;
             let q = node.map_from_sensor.rotation;
             let _ = writeln!(
@@ -78,7 +79,7 @@ pub fn write_export(
                 node.id, t.x, t.y, t.z, q.i, q.j, q.k, q.w
             );
             // The measured hits, as the ray update takes them, in the map frame.
-            let (_, hits, _) = ray_inputs(view, &scans[node.id as usize]);
+            let (_, hits, _) = ray_inputs(view.layouts.of(i), scan);
             let hits: Vec<[f64; 3]> = hits.iter().map(|h| (h.coords + offset).into()).collect();
             write_ply(&dir.join(format!("vp_{:03}.ply", node.id)), t.into(), &hits)?;
         }
@@ -107,9 +108,9 @@ pub fn write_export(
             offset = [offset.x, offset.y, offset.z],
             version = env!("CARGO_PKG_VERSION"),
             reach = NO_RETURN_REACH,
-            far = NO_RETURN_REACH * view.scanner.max_range,
-            max_range = view.scanner.max_range,
-            command = graph2tree_command(Path::new("."), resolution, view.scanner.max_range),
+            far = NO_RETURN_REACH * view.max_range,
+            max_range = view.max_range,
+            command = graph2tree_command(Path::new("."), resolution, view.max_range),
         );
         std::fs::write(dir.join("README.txt"), readme)
             .map_err(|e| Error::io(dir.join("README.txt"), e))
@@ -129,7 +130,7 @@ mod tests {
         )))
         .unwrap();
         let run = simulate(&experiment, 1, |_| {}).unwrap();
-        let view = MapperView::of(&experiment);
+        let view = experiment.mapper_view();
         let offset = Vector3::new(0.004, -0.002, 0.001);
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("export");
@@ -140,7 +141,7 @@ mod tests {
             .iter()
             .any(|m| m.status == BeamStatus::Dropout));
         for scan in &run.scans {
-            let (origin, hits, _) = ray_inputs(&view, scan);
+            let (origin, hits, _) = ray_inputs(&experiment.scanner.layout, scan);
             let (ply_origin, ply_hits) =
                 read_ply(&out.join(format!("vp_{:03}.ply", scan.viewpoint))).unwrap();
             assert!((Vector3::from(ply_origin) - (origin.coords + offset)).norm() < 1e-12);

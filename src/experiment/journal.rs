@@ -2,12 +2,12 @@
 //! records are either whole or ignored, and the fingerprint of every input a
 //! run read, so that results of other inputs are never reused.
 
-use super::model::Method;
 use super::runner::{RunRow, TimingRow};
 use super::Experiment;
+use super::RunMethod;
 use crate::error::{Error, Result};
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// FNV-1a, 64 bits: a stable hash (the same on every machine and version).
 fn fnv(hash: u64, bytes: &[u8]) -> u64 {
@@ -49,16 +49,26 @@ impl Inputs {
 
 /// The inputs of the runs of `cells` (one loaded experiment per sweep
 /// cell): each cell's sweep values, experiment, profile, scene and mesh
-/// files and robot description, and sigmap's version.
+/// files and robot description, its external mappers' programs and
+/// scripts, and sigmap's version. Fails when a mapper's program is missing.
 pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
     let mut hash = fnv(FNV_OFFSET, env!("CARGO_PKG_VERSION").as_bytes());
     let mut files: Vec<(String, String)> = Vec::new();
     for cell in cells {
         hash = fnv(hash, Experiment::cell_label(&cell.cell).as_bytes());
-        let paths = [&cell.source, &cell.profile.source, &cell.robot.source]
+        let mut paths: Vec<PathBuf> = [&cell.source, &cell.profile.source, &cell.robot.source]
             .into_iter()
-            .chain(&cell.scene.inputs);
-        for path in paths {
+            .chain(&cell.scene.inputs)
+            .cloned()
+            .collect();
+        // An external mapper is its program and the scripts it names: a
+        // rebuilt one is new input.
+        for method in &cell.methods {
+            if let RunMethod::External(mapper) = method {
+                paths.extend(mapper.inputs()?);
+            }
+        }
+        for path in &paths {
             let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
             // Content only: the same files named from another folder match.
             let name = path.to_string_lossy().into_owned();
@@ -83,7 +93,7 @@ pub struct Wanted<'a> {
     /// The seeds.
     pub seeds: &'a [u64],
     /// The methods.
-    pub methods: &'a [Method],
+    pub methods: &'a [RunMethod],
 }
 
 /// A row of a results file: the run and method it belongs to.
@@ -223,6 +233,7 @@ fn parse_record(record: &[u8], end: &[u8]) -> Option<(Vec<RunRow>, Vec<TimingRow
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mapping::Method;
 
     fn row(seed: u64, method: &str, f1: f64) -> RunRow {
         let mut r: RunRow = csv::ReaderBuilder::new()
@@ -284,7 +295,7 @@ mod tests {
     #[test]
     fn only_the_experiments_runs_count_and_only_when_every_method_ran() {
         let cells = ["c".to_string()];
-        let methods = [Method::Unscented, Method::RayUpdate];
+        let methods = [Method::Unscented, Method::RayUpdate].map(RunMethod::Own);
         let wanted = Wanted {
             cells: &cells,
             seeds: &[1, 2],

@@ -2,8 +2,8 @@
 //! with 95% intervals, the coverage of the propagated covariances, and a slice
 //! of each map against the truth.
 
-use super::model::Method;
 use super::summary::SummaryRow;
+use super::RunMethod;
 use super::{Experiment, SweepValue};
 use crate::error::{Error, Result};
 use crate::eval::scores::UNKNOWN_BAND;
@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 fn mean<'a>(
     summary: &'a [SummaryRow],
     cell: &str,
-    method: Method,
+    method: &RunMethod,
     metric: &str,
 ) -> Option<&'a SummaryRow> {
     summary
@@ -49,7 +49,7 @@ pub fn plot_scores(
     path: &Path,
     summary: &[SummaryRow],
     cells: &[Vec<(String, SweepValue)>],
-    methods: &[Method],
+    methods: &[RunMethod],
 ) -> Result<Vec<PathBuf>> {
     let Some(axis) = cells
         .first()
@@ -83,7 +83,7 @@ pub fn plot_scores(
     };
     let series_for = |metric: &str| -> Vec<Series> {
         let mut out: Vec<Series> = Vec::new();
-        for &method in methods {
+        for method in methods {
             for cell in cells {
                 let rest = label(&cell[1..]);
                 let name = if rest.is_empty() {
@@ -160,7 +160,7 @@ pub fn plot_safety(
     path: &Path,
     summary: &[SummaryRow],
     cells: &[Vec<(String, SweepValue)>],
-    methods: &[Method],
+    methods: &[RunMethod],
 ) -> Result<Vec<PathBuf>> {
     let Some(risk_axis) = cells
         .first()
@@ -169,7 +169,7 @@ pub fn plot_safety(
         return Ok(Vec::new());
     };
     let mut series: Vec<Series> = Vec::new();
-    for &method in methods {
+    for method in methods {
         for cell in cells {
             let others: Vec<(String, SweepValue)> = cell
                 .iter()
@@ -222,11 +222,11 @@ pub fn plot_coverage(
     path: &Path,
     summary: &[SummaryRow],
     cell: &str,
-    methods: &[Method],
+    methods: &[RunMethod],
 ) -> Result<()> {
     let mut series: Vec<Series> = methods
         .iter()
-        .filter_map(|&m| {
+        .filter_map(|m| {
             let points: Vec<(f64, f64)> = ["coverage_1sigma", "coverage_2sigma", "coverage_3sigma"]
                 .iter()
                 .enumerate()
@@ -288,7 +288,7 @@ const MAX_SLICE_CELLS: f64 = 160.0;
 pub fn plot_slice(
     path: &Path,
     truth: &Octree,
-    maps: &[(Method, &Octree)],
+    maps: &[(RunMethod, &Octree)],
     workspace: &Bounds,
     z: f64,
 ) -> Result<()> {
@@ -301,7 +301,7 @@ fn draw_slice(
     svg: &mut String,
     path: &Path,
     truth: &Octree,
-    maps: &[(Method, &Octree)],
+    maps: &[(RunMethod, &Octree)],
     workspace: &Bounds,
     z: f64,
 ) -> Result<()> {

@@ -18,22 +18,18 @@
 //! median angular spacing of nearest neighbours, which is the raster step
 //! of a regular scanner; `--angular-step` overrides it.
 
-use super::model::{
-    pooled_surface_points, propagator, split_chain, take_shared_motion, Method,
-    REGISTERED_TRUTH_FROM_SCANS,
-};
 use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Pose, Vector3};
-use crate::mapping::merge::merge;
-use crate::mapping::octree::Octree;
-use crate::mapping::pooling::Pooling;
-use crate::mapping::ray_update::RayUpdater;
+use crate::mapping::scan::{
+    BeamGrid, BeamLayout, BeamStatus, GridMember, Layouts, MapperView, Measurement, NominalChain,
+    Scan, MAX_BEAMS_PER_VIEWPOINT,
+};
 use crate::mapping::scan_graph::{parse_scan_graph, ScanNode};
 use crate::mapping::settings::MapSettings;
-use crate::mapping::spherical::{spherical, Axis, BeamEnd, LocalGrid};
+use crate::mapping::spherical::{spherical, Axis};
+use crate::mapping::{build_map_with, BuildExtras, Method, Octree};
 use crate::sim::profile::{ArmError, ErrorProfile};
-use crate::sim::sensor::{RangeModel, MAX_BEAMS_PER_VIEWPOINT};
-use crate::uncertainty::{SigmaSet, UncertainChain, UncertainPoint, UncertainPose};
+use crate::uncertainty::{SigmaSet, UncertainPose};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -84,14 +80,14 @@ pub fn read_scan_graph(path: &Path) -> Result<Vec<ScanNode>> {
 /// The profile's belief about a recorded node's chain: `T_sw = I`,
 /// `T_rw` = the node's pose, `T_cr = I`, with the profile's covariances.
 /// Fails when the arm error is given per joint (a graph has no joints).
-pub fn node_chain(node: &ScanNode, profile: &ErrorProfile) -> Result<UncertainChain> {
+pub fn node_chain(node: &ScanNode, profile: &ErrorProfile) -> Result<NominalChain> {
     let arm = arm_covariance(profile)?;
     let uncertain = |mean, covariance| UncertainPose { mean, covariance };
-    Ok(UncertainChain::paper(
-        uncertain(Pose::identity(), profile.world_from_scene),
-        uncertain(Pose::from_isometry(&node.map_from_sensor), arm),
-        uncertain(Pose::identity(), profile.robot_from_camera),
-    ))
+    Ok(NominalChain {
+        world_from_scene: uncertain(Pose::identity(), profile.world_from_scene),
+        world_from_robot: uncertain(Pose::from_isometry(&node.map_from_sensor), arm),
+        robot_from_camera: uncertain(Pose::identity(), profile.robot_from_camera),
+    })
 }
 
 fn arm_covariance(profile: &ErrorProfile) -> Result<Matrix6> {
@@ -105,143 +101,112 @@ fn arm_covariance(profile: &ErrorProfile) -> Result<Matrix6> {
     }
 }
 
+/// The scans a mapper sees of recorded `nodes` (ScanGraph order), believed
+/// through the profile ([`node_chain`]), with each one's beam layout: its
+/// points as beams (a point farther than `max_range` is a beam that returned
+/// nothing; one at the origin carries nothing) binned on the grids recovered
+/// from the cloud (`angular_step`: their bin width, else each grid's median
+/// spacing; docs/math.md §5.6).
+pub fn recorded_scans(
+    nodes: &[ScanNode],
+    profile: &ErrorProfile,
+    max_range: f64,
+    angular_step: Option<f64>,
+) -> Result<(Vec<Scan>, Vec<BeamLayout>)> {
+    let mut scans = Vec::with_capacity(nodes.len());
+    let mut layouts = Vec::with_capacity(nodes.len());
+    for node in nodes {
+        let measurements = node
+            .points
+            .iter()
+            .map(|p| point_measurement(p, max_range))
+            .collect();
+        scans.push(Scan {
+            viewpoint: node.id as usize,
+            joints: Vec::new(),
+            chain: node_chain(node, profile)?,
+            measurements,
+        });
+        layouts.push(node_layout(node, angular_step)?);
+    }
+    Ok((scans, layouts))
+}
+
+/// A recorded point as a beam's measurement: a hit at its range, or beyond
+/// `max_range` a beam that returned nothing (its range kept: OctoMap's
+/// update carves toward it up to `max_range`); a point at the origin is a
+/// beam too close to measure.
+fn point_measurement(p: &Point3, max_range: f64) -> Measurement {
+    let r = p.coords.norm();
+    let status = if r == 0.0 {
+        BeamStatus::TooClose
+    } else if r <= max_range {
+        BeamStatus::Hit
+    } else {
+        BeamStatus::NoReturn
+    };
+    Measurement { status, range: r }
+}
+
+/// The beam layout of a node's cloud: each point's direction, binned on the
+/// grids of [`node_grids`].
+fn node_layout(node: &ScanNode, step: Option<f64>) -> Result<BeamLayout> {
+    let directions = node
+        .points
+        .iter()
+        .map(|p| {
+            let r = p.coords.norm();
+            if r > 0.0 {
+                p.coords / r
+            } else {
+                Vector3::zeros()
+            }
+        })
+        .collect();
+    let grids = node_grids(node, step)?
+        .into_iter()
+        .map(NodeGrid::into_beam_grid)
+        .collect();
+    Ok(BeamLayout {
+        directions,
+        grids,
+        half_angles: None,
+    })
+}
+
 /// Builds the map of recorded `nodes` (ScanGraph order) with the profile's
-/// range model and covariances; `done(k)` after the k-th node.
+/// range model and covariances: [`recorded_scans`] mapped by the one map
+/// builder; `done(k)` after the k-th node.
 pub fn map_recorded(
     nodes: &[ScanNode],
     profile: &ErrorProfile,
     settings: &MapSettings,
     options: &RecordedOptions,
-    done: impl Fn(usize),
+    done: impl Fn(usize) + Sync,
 ) -> Result<Octree> {
-    if options.method == Method::RegisteredTruth {
-        return Err(Error::Usage(REGISTERED_TRUTH_FROM_SCANS.into()));
-    }
-    let chains = nodes
-        .iter()
-        .map(|node| node_chain(node, profile))
-        .collect::<Result<Vec<_>>>()?;
     let max_range = options.max_range.unwrap_or(f64::INFINITY);
-    let mut tree = Octree::new(options.resolution);
-    if options.method == Method::RayUpdate {
-        let mut updater = RayUpdater::new(settings.update);
-        for (k, node) in nodes.iter().enumerate() {
-            let origin = Point3::from(node.map_from_sensor.translation.vector);
-            // With beam pooling a hit's ray ends at its pooled point.
-            let measured = match settings.beam_pooling {
-                Pooling::Off => None,
-                pooling => {
-                    let grids = node_grids(node, options.angular_step)?;
-                    Some(node_points(
-                        node,
-                        &grids,
-                        &profile.range,
-                        pooling,
-                        max_range,
-                    )?)
-                }
-            };
-            let hits: Vec<Point3> = node
-                .points
-                .iter()
-                .enumerate()
-                .map(|(i, p)| {
-                    let point = measured
-                        .as_ref()
-                        .and_then(|m| m[i].as_ref())
-                        .map_or(*p, |m| Point3::from(m.mean));
-                    node.map_from_sensor * point
-                })
-                .collect();
-            updater.insert_scan(&mut tree, &origin, &hits, &[], max_range);
-            done(k + 1);
-        }
-        tree.shrink_to_fit();
-        return Ok(tree);
-    }
-    let merge_options = settings.merge_options();
-    for (k, (node, full_chain)) in nodes.iter().zip(&chains).enumerate() {
-        let chain = if options.method == Method::Correlated {
-            split_chain(full_chain, false)
-        } else {
-            full_chain.clone()
-        };
+    let (scans, layouts) = recorded_scans(nodes, profile, max_range, options.angular_step)?;
+    let view = MapperView {
+        layouts: Layouts::PerScan(&layouts),
+        range: &profile.range,
+        max_range,
+        settings,
         // Recorded scans come with a profile, not an experiment: the
         // paper's sigma-point set.
-        let propagator =
-            propagator(options.method, &chain, SigmaSet::Paper).expect("an OPDF method");
-        let origin = propagator.origin();
-        let map_from_sensor = chain.nominal().rotation.to_rotation_matrix().into_inner();
-        let grids = node_grids(node, options.angular_step)?;
-        if settings.interpolate_beams {
-            for grid in &grids {
-                let bins = grid.azimuth.count as f64 * grid.elevation.count as f64;
-                crate::experiment::check_sample_budget(bins).map_err(Error::Usage)?;
-            }
-        }
-        let points = node_points(
-            node,
-            &grids,
-            &profile.range,
-            settings.beam_pooling,
-            max_range,
-        )?;
-        for grid in &grids {
-            let ends = beam_ends(
-                &node.points,
-                &grid.members,
-                &points,
-                &map_from_sensor,
-                propagator.as_ref(),
-            );
-            let mut grid = LocalGrid::new(
-                origin.mean,
-                map_from_sensor * grid.sensor_from_grid,
-                grid.azimuth,
-                grid.elevation,
-                max_range,
-                &ends,
-                &origin.covariance,
-            );
-            if settings.interpolate_beams {
-                grid.add_surface_samples();
-            }
-            merge(&mut tree, &grid, &merge_options);
-        }
-        done(k + 1);
-    }
-    if options.method == Method::Correlated {
-        take_shared_motion(&mut tree, &chains, &Vector3::zeros(), merge_options.clamp)?;
-    }
-    tree.shrink_to_fit();
-    Ok(tree)
-}
-
-/// The propagated ends of the points `members` of a cloud (none at the
-/// origin, [`grid_frames`]): a point with a measured point (`points`,
-/// [`node_points`]) is a hit, else a no-return beam along its direction.
-fn beam_ends(
-    cloud: &[Point3],
-    members: &[usize],
-    points: &[Option<UncertainPoint>],
-    map_from_sensor: &Matrix3,
-    propagator: &dyn crate::uncertainty::Propagator,
-) -> Vec<BeamEnd> {
-    members
-        .par_iter()
-        .map(|&i| match &points[i] {
-            Some(point) => {
-                let g = propagator.propagate(point);
-                BeamEnd::Hit {
-                    point: g.mean,
-                    covariance: g.covariance,
-                }
-            }
-            None => BeamEnd::Miss {
-                direction: map_from_sensor * cloud[i].coords.normalize(),
-            },
-        })
-        .collect()
+        sigma_set: SigmaSet::Paper,
+    };
+    let extras = BuildExtras {
+        measured: None,
+        done: Some(&done),
+    };
+    build_map_with(
+        &view,
+        &scans,
+        extras,
+        options.method,
+        options.resolution,
+        &Vector3::zeros(),
+    )
 }
 
 /// One angular grid of a node's cloud (docs/math.md §5.6): its frame, its
@@ -252,6 +217,32 @@ struct NodeGrid {
     angles: Vec<(f64, f64)>,
     azimuth: Axis,
     elevation: Axis,
+}
+
+impl NodeGrid {
+    /// The grid as a mapper bins beams on it: each point in the bin of its
+    /// (azimuth, elevation), the raster slot `row × columns + column`.
+    fn into_beam_grid(self) -> BeamGrid {
+        let (azimuth, elevation) = (self.azimuth, self.elevation);
+        let bin = |angle: f64, axis: &Axis| {
+            (((angle - axis.start) / axis.step).floor().max(0.0) as usize).min(axis.count - 1)
+        };
+        let members = self
+            .members
+            .iter()
+            .zip(&self.angles)
+            .map(|(&beam, &(a, e))| GridMember {
+                beam,
+                slot: bin(e, &elevation) * azimuth.count + bin(a, &azimuth),
+            })
+            .collect();
+        BeamGrid {
+            camera_from_grid: self.sensor_from_grid,
+            azimuth,
+            elevation,
+            members: Some(members),
+        }
+    }
 }
 
 /// The angular grids of `node`'s cloud with their bins (`step`: the bin
@@ -279,68 +270,6 @@ fn node_grids(node: &ScanNode, step: Option<f64>) -> Result<Vec<NodeGrid>> {
         });
     }
     Ok(grids)
-}
-
-/// The measured point (sensor frame) of each point of `node` within
-/// `max_range` (`None`: a beam that returned nothing, or the origin): the
-/// point with the range model's covariance, or with `pooling` its range
-/// pooled with its neighbours in its grid's raster of bins (docs/math.md
-/// §5.5; a regular scanner's raster, one point per bin, §5.6).
-fn node_points(
-    node: &ScanNode,
-    grids: &[NodeGrid],
-    range: &RangeModel,
-    pooling: Pooling,
-    max_range: f64,
-) -> Result<Vec<Option<UncertainPoint>>> {
-    let mut points: Vec<Option<UncertainPoint>> = node
-        .points
-        .par_iter()
-        .map(|p| {
-            let r = p.coords.norm();
-            (r > 0.0 && r <= max_range).then(|| UncertainPoint {
-                mean: p.coords,
-                covariance: range.point_covariance(&(p.coords / r), r),
-            })
-        })
-        .collect();
-    if pooling == Pooling::Off {
-        return Ok(points);
-    }
-    for grid in grids {
-        let (columns, rows) = (grid.azimuth.count, grid.elevation.count);
-        let bin = |angle: f64, axis: &Axis| {
-            (((angle - axis.start) / axis.step).floor().max(0.0) as usize).min(axis.count - 1)
-        };
-        let mut ranges = vec![None; columns * rows];
-        let mut directions = vec![Vector3::zeros(); columns * rows];
-        let mut slots = Vec::with_capacity(grid.members.len());
-        for (&i, &(azimuth, elevation)) in grid.members.iter().zip(&grid.angles) {
-            let slot = bin(elevation, &grid.elevation) * columns + bin(azimuth, &grid.azimuth);
-            // A slot's direction is set once it holds a point.
-            if directions[slot] != Vector3::zeros() {
-                return Err(Error::Usage(format!(
-                    "beam pooling needs a regular raster, one point per angular bin: scan {} has \
-                     two points in one bin of {:.4} deg; give the scanner's step with \
-                     --angular-step, or map without --beam-pooling",
-                    node.id,
-                    grid.azimuth.step.to_degrees()
-                )));
-            }
-            let p = node.points[i].coords;
-            let r = p.norm();
-            directions[slot] = p / r;
-            ranges[slot] = points[i].as_ref().map(|_| r);
-            slots.push(slot);
-        }
-        let pooled = pooled_surface_points(pooling, columns, &directions, &ranges, range);
-        for (&i, &slot) in grid.members.iter().zip(&slots) {
-            if points[i].is_some() {
-                points[i] = pooled[slot];
-            }
-        }
-    }
-    Ok(points)
 }
 
 /// The angular grids of a cloud: `(sensor_from_grid, the points in it)`.

@@ -245,7 +245,7 @@ fn paired_table(html: &mut String, experiment: &Experiment, cell: &str, paired: 
     for method in experiment
         .methods
         .iter()
-        .filter(|&&m| m != experiment.reference)
+        .filter(|&m| *m != experiment.reference)
     {
         let _ = write!(html, "<tr><td>{}</td>", method.as_str());
         for (metric, _, digits) in HEADLINE {

@@ -1,21 +1,21 @@
 //! `sigmap run`: every seed of an experiment, every method on each seed's
 //! scans (common random numbers), scored against the ground truth.
 
+use super::external::MapperRun;
 use super::metrics::Measured;
-use super::model::{
-    build_map_measured, hit_point, measured_ranges, propagator, scan_chain, MapperView, Method,
-};
-use super::{simulate, Experiment, RunTruth};
+use super::{simulate, Experiment, RunMethod, RunTruth, SimulatedRun};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::{voxelise_at, voxelise_in};
 use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
 use crate::geometry::{Isometry3, Matrix3, Vector3};
+use crate::mapping::measured::{hit_point, measured_ranges};
+use crate::mapping::method::{propagator, scan_chain};
 use crate::mapping::pooling::Pooled;
-use crate::mapping::Octree;
+use crate::mapping::{build_map_with, BuildExtras, Method, Octree};
 use crate::sim::scan::ScanTruth;
 use crate::uncertainty::consistency::{nees, ConsistencyReport};
-use crate::uncertainty::Propagator;
+use crate::uncertainty::{Propagator, RangeModel};
 use rustc_hash::FxHashSet;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -84,7 +84,7 @@ pub fn observable(
     offset: &Vector3,
 ) -> FxHashSet<u64> {
     observable_cells(
-        &experiment.scanner.directions,
+        experiment.scanner.directions(),
         experiment.scanner.max_range,
         truths,
         experiment.resolution,
@@ -100,66 +100,50 @@ pub fn run_seed(
     seed: u64,
 ) -> Result<(Vec<RunRow>, Vec<TimingRow>, Vec<Octree>)> {
     let start = Instant::now();
-    let run = simulate(experiment, seed, |_| {})?;
+    let seed_run = SeedRun::new(experiment, seed)?;
     let simulate_s = start.elapsed().as_secs_f64();
-    let offset = experiment.map_offset(seed);
-    let observable = observable(experiment, &run.truth.scans, &offset);
-    // What each scan measured (pooled or not): the same for every method.
-    let view = MapperView::of(experiment);
-    let measured: Vec<_> = run
-        .scans
-        .iter()
-        .map(|scan| measured_ranges(&view, scan))
-        .collect();
+    let cell = Experiment::cell_label(&experiment.cell);
     let (mut rows, mut timings, mut maps) = (Vec::new(), Vec::new(), Vec::new());
-    for &method in &experiment.methods {
+    for method in &experiment.methods {
         let start = Instant::now();
-        let map = if method == Method::RegisteredTruth {
-            registered_truth(experiment, &run.truth, experiment.resolution, &offset)
-        } else {
-            build_map_measured(
-                &view,
-                &run.scans,
-                Some(&measured),
-                method,
-                experiment.resolution,
-                &offset,
-            )?
-        };
+        let map = seed_run.map(method, &cell)?;
         let model_s = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let s: MapScores = score_map(&map, truth, &observable);
-        // Propagated points against the true surface points. Points of one
-        // viewpoint share its pose error: the χ² bounds do not apply here.
-        let mut pairs = Vec::new();
-        for ((scan, truth), points) in run.scans.iter().zip(&run.truth.scans).zip(&measured) {
-            if let Some(p) = propagator(method, &scan_chain(scan), experiment.sigma_set) {
-                pairs.extend(errors_against_truth(&view, truth, points, p.as_ref()));
-            }
+        let scores: MapScores = score_map(&map, truth, &seed_run.observable);
+        if let RunMethod::External(mapper) = method {
+            check_frame(&scores, &map).map_err(|what| {
+                Error::Usage(format!(
+                    "mapper {} (cell {cell}, seed {seed}): {what}",
+                    mapper.name
+                ))
+            })?;
         }
+        let pairs = method.own().map_or_else(Vec::new, |m| seed_run.errors(m));
+        // Points of one viewpoint share its pose error: the χ² bounds of
+        // the consistency report do not apply to the run's points as one.
         let consistency =
             (!pairs.is_empty()).then(|| ConsistencyReport::new(pairs.iter().map(|(e, c)| (*e, c))));
         let nees_point = pairs.first().map_or(f64::NAN, |(e, c)| nees(e, c));
         let score_s = start.elapsed().as_secs_f64();
         let stats = map.stats();
-        let cell = Experiment::cell_label(&experiment.cell);
         let measured = Measured {
-            scores: &s,
+            scores: &scores,
             consistency: consistency.as_ref(),
             nees_point,
             stats: &stats,
         };
+        let name = method.as_str();
         rows.push(RunRow::new(
             cell.clone(),
             seed,
-            method.as_str(),
+            name,
             experiment.resolution,
             &measured,
         ));
         timings.push(TimingRow {
-            cell,
+            cell: cell.clone(),
             seed,
-            method: method.as_str().into(),
+            method: name.into(),
             simulate_s,
             model_s,
             score_s,
@@ -169,21 +153,132 @@ pub fn run_seed(
     Ok((rows, timings, maps))
 }
 
+/// One seed's simulated run, with what every method of it shares: the
+/// map offset, the scoring mask and the scans' measured ranges.
+struct SeedRun<'a> {
+    experiment: &'a Experiment,
+    seed: u64,
+    run: SimulatedRun,
+    offset: Vector3,
+    observable: FxHashSet<u64>,
+    measured: Vec<Vec<Pooled>>,
+}
+
+impl<'a> SeedRun<'a> {
+    fn new(experiment: &'a Experiment, seed: u64) -> Result<Self> {
+        let run = simulate(experiment, seed, |_| {})?;
+        let offset = experiment.map_offset(seed);
+        let observable = observable(experiment, &run.truth.scans, &offset);
+        // What each scan measured (pooled or not): the same for every method.
+        let view = experiment.mapper_view();
+        let measured = run
+            .scans
+            .iter()
+            .map(|scan| measured_ranges(&view, &experiment.scanner.layout, scan))
+            .collect::<std::result::Result<_, _>>()
+            .map_err(Error::Usage)?;
+        Ok(Self {
+            experiment,
+            seed,
+            run,
+            offset,
+            observable,
+            measured,
+        })
+    }
+
+    /// The map of `method`: sigmap's own builder, the registered truth, or
+    /// an external mapper run on the exported scans.
+    fn map(&self, method: &RunMethod, cell: &str) -> Result<Octree> {
+        let experiment = self.experiment;
+        let view = experiment.mapper_view();
+        match method {
+            RunMethod::Own(Method::RegisteredTruth) => Ok(registered_truth(
+                experiment,
+                &self.run.truth,
+                experiment.resolution,
+                &self.offset,
+            )),
+            RunMethod::Own(method) => {
+                let extras = BuildExtras {
+                    measured: Some(&self.measured),
+                    done: None,
+                };
+                let scans = &self.run.scans;
+                build_map_with(
+                    &view,
+                    scans,
+                    extras,
+                    *method,
+                    experiment.resolution,
+                    &self.offset,
+                )
+            }
+            RunMethod::External(mapper) => mapper.build(&MapperRun {
+                cell,
+                seed: self.seed,
+                view: &view,
+                scans: &self.run.scans,
+                resolution: experiment.resolution,
+                offset: &self.offset,
+                clamp: experiment.map.clamp(),
+            }),
+        }
+    }
+
+    /// Propagated points of `method` against the true surface points: the
+    /// error and covariance of every hit (none for a method that
+    /// propagates nothing).
+    fn errors(&self, method: Method) -> Vec<(Vector3, Matrix3)> {
+        let experiment = self.experiment;
+        let mut pairs = Vec::new();
+        let scans = self.run.scans.iter().zip(&self.run.truth.scans);
+        for ((scan, truth), points) in scans.zip(&self.measured) {
+            if let Some(p) = propagator(method, &scan_chain(scan), experiment.sigma_set) {
+                pairs.extend(errors_against_truth(
+                    &experiment.profile.range,
+                    experiment.scanner.directions(),
+                    truth,
+                    points,
+                    p.as_ref(),
+                ));
+            }
+        }
+        pairs
+    }
+}
+
+/// Refuses an external map that knows almost none of the run's observable
+/// cells though it knows cells: it is in another frame than the export's.
+fn check_frame(scores: &MapScores, map: &Octree) -> std::result::Result<(), String> {
+    let known_leaves = map.stats().leaves;
+    if known_leaves > 0 && scores.unknown_fraction > 0.99 {
+        return Err(format!(
+            "its map knows {known_leaves} cells but {:.1}% of the run's observable cells are \
+             unknown in it: it is not in the map frame of the exported scans (scans.graph's \
+             poses, the scene frame shifted by the run's grid offset)",
+            100.0 * scores.unknown_fraction
+        ));
+    }
+    Ok(())
+}
+
 /// For each hit of a scan (its measured ranges, as [`hit_point`]s): the
 /// error `true hit − propagated mean` and the propagated covariance, for
 /// consistency checks against the simulator.
 fn errors_against_truth(
-    view: &MapperView,
+    range: &RangeModel,
+    directions: &[Vector3],
     truth: &ScanTruth,
     ranges: &[Pooled],
     propagator: &dyn Propagator,
 ) -> Vec<(Vector3, Matrix3)> {
     ranges
         .iter()
-        .zip(&view.scanner.directions)
+        .zip(directions)
         .zip(&truth.beams)
         .filter_map(|((p, d), t)| {
-            let g = propagator.propagate(&hit_point(view.range, d, p.as_ref()?));
+            let g = propagator.propagate(&hit_point(range, d, p.as_ref()?));
             Some((t.point.coords - g.mean, g.covariance))
         })
         .collect()
@@ -301,7 +396,7 @@ mod tests {
         let (mut hits, mut in_registered, mut in_truth) = (0, 0, 0);
         for (scan, seen) in run.scans.iter().zip(&run.truth.scans) {
             let map_from_camera = scan.chain.scene_from_camera();
-            for (beam, d) in seen.beams.iter().zip(&experiment.scanner.directions) {
+            for (beam, d) in seen.beams.iter().zip(experiment.scanner.directions()) {
                 if !beam.range.is_finite() {
                     continue;
                 }
@@ -360,15 +455,16 @@ mod tests {
         .unwrap();
         experiment.map.beam_pooling = crate::mapping::pooling::Pooling::Windows;
         let run = simulate(&experiment, 1, |_| {}).unwrap();
-        let view = MapperView::of(&experiment);
+        let view = experiment.mapper_view();
         let (scan, truth) = (&run.scans[0], &run.truth.scans[0]);
-        let ranges = measured_ranges(&view, scan);
+        let ranges = measured_ranges(&view, &experiment.scanner.layout, scan).unwrap();
         let chain = scan_chain(scan);
         let blind = propagator(Method::Blind, &chain, view.sigma_set).unwrap();
-        let pairs = errors_against_truth(&view, truth, &ranges, blind.as_ref());
+        let directions = experiment.scanner.directions();
+        let pairs = errors_against_truth(view.range, directions, truth, &ranges, blind.as_ref());
         let hits: Vec<_> = ranges
             .iter()
-            .zip(&view.scanner.directions)
+            .zip(directions)
             .filter_map(|(p, d)| p.map(|p| (p, d)))
             .collect();
         assert_eq!(pairs.len(), hits.len());

@@ -2,11 +2,12 @@
 //! with the sensor origin, and the nominal chain in `sigmap propagate` format;
 //! the truth in a separate folder for scoring.
 
-use super::model::{pooled_ray_ends, ray_inputs_into, MapperView};
 use super::{Experiment, SimulatedRun};
 use crate::error::{Error, Result};
 use crate::geometry::{Isometry3, Matrix6, Pose};
-use crate::sim::scan::{BeamStatus, Scan, ScanTruth};
+use crate::mapping::measured::{pooled_ray_ends, ray_inputs_into};
+use crate::mapping::scan::{BeamStatus, MapperView, Scan};
+use crate::sim::scan::ScanTruth;
 use crate::uncertainty::UncertainPose;
 use std::fmt::Write as _;
 use std::io::Write;
@@ -121,7 +122,7 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
         manifest,
         "viewpoints = {}\nbeams_per_viewpoint = {}",
         run.scans.len(),
-        scanner.directions.len()
+        scanner.directions().len()
     );
     let _ = writeln!(
         manifest,
@@ -218,7 +219,7 @@ fn write_viewpoint(
     for (i, (m, d)) in scan
         .measurements
         .iter()
-        .zip(&scanner.directions)
+        .zip(scanner.directions())
         .enumerate()
     {
         line.clear();
@@ -354,13 +355,14 @@ pub fn default_scan_dir(experiment: &Experiment) -> PathBuf {
 /// `u32` n, n × `f32` x y z (benches/octomap/insert.cpp reads it).
 pub fn write_rays(path: &Path, view: &MapperView, scans: &[Scan]) -> Result<()> {
     let mut out = b"SIGMAPRAYS1\n".to_vec();
-    let max_range = view.scanner.max_range;
+    let max_range = view.max_range;
     out.extend_from_slice(&(max_range as f32).to_le_bytes());
     out.extend_from_slice(&(scans.len() as u32).to_le_bytes());
     let (mut hits, mut misses) = (Vec::new(), Vec::new());
-    for scan in scans {
-        let pooled = pooled_ray_ends(view, scan);
-        let origin = ray_inputs_into(view, scan, pooled.as_deref(), &mut hits, &mut misses);
+    for (i, scan) in scans.iter().enumerate() {
+        let layout = view.layouts.of(i);
+        let pooled = pooled_ray_ends(view, layout, scan).map_err(Error::Usage)?;
+        let origin = ray_inputs_into(layout, scan, pooled.as_deref(), &mut hits, &mut misses);
         for v in origin.iter() {
             out.extend_from_slice(&(*v as f32).to_le_bytes());
         }

@@ -3,7 +3,8 @@
 use super::Experiment;
 use crate::error::{Error, Result};
 use crate::geometry::Isometry3;
-use crate::sim::scan::{cast_beams, NominalChain, Scan, ScanTruth};
+use crate::mapping::scan::{NominalChain, Scan};
+use crate::sim::scan::{cast_beams, ScanTruth};
 use crate::sim::streams::{Stream, Streams};
 use crate::sim::truth::{draw_arm, draw_pose};
 use crate::uncertainty::UncertainPose;

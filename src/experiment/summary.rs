@@ -4,7 +4,7 @@
 //! with its 95% Student t interval (docs/math.md §7.4).
 
 use super::metrics::{Better, Metric, RunRow, METRICS};
-use super::model::Method;
+use super::RunMethod;
 use crate::uncertainty::consistency::student_t_quantile;
 use serde::{Deserialize, Serialize};
 
@@ -55,7 +55,7 @@ fn values_by_seed<'a>(rows: impl Iterator<Item = &'a RunRow>, index: usize) -> V
 /// the 95% interval over the rows' seeds. The interval is Student t's, cut
 /// to the values the metric can take (a rate's stays in [0, 1], ANEES's
 /// above 0): the mean lies there, so the cut loses no coverage.
-pub fn summarise(rows: &[RunRow], cells: &[String], methods: &[Method]) -> Vec<SummaryRow> {
+pub fn summarise(rows: &[RunRow], cells: &[String], methods: &[RunMethod]) -> Vec<SummaryRow> {
     let mut out = Vec::new();
     for (cell, method) in cells
         .iter()
@@ -211,18 +211,18 @@ impl PairedDifference {
 pub fn paired(
     rows: &[RunRow],
     cells: &[String],
-    methods: &[Method],
-    reference: Method,
+    methods: &[RunMethod],
+    reference: &RunMethod,
 ) -> Vec<PairedRow> {
     let mut out = Vec::new();
     for cell in cells {
-        let of = |method: Method, index: usize| -> Vec<(u64, f64)> {
+        let of = |method: &RunMethod, index: usize| -> Vec<(u64, f64)> {
             let mine = rows
                 .iter()
                 .filter(|r| &r.cell == cell && r.method == method.as_str());
             values_by_seed(mine, index)
         };
-        for &method in methods.iter().filter(|&&m| m != reference) {
+        for method in methods.iter().filter(|&m| m != reference) {
             for (index, metric) in METRICS.iter().enumerate() {
                 if !metric.summarised() {
                     continue;
@@ -240,7 +240,7 @@ pub fn paired(
 
 fn paired_row(
     cell: &str,
-    (method, reference): (Method, Method),
+    (method, reference): (&RunMethod, &RunMethod),
     metric: &Metric,
     difference: PairedDifference,
 ) -> PairedRow {

@@ -6,8 +6,10 @@
 //! [`spherical`], merged by [`merge`] with the cell model of [`chord`]; beam
 //! [`pooling`]; the [`shared_motion`] step for correlated errors) and
 //! OctoMap's ray update ([`ray_update`]) — and the [`MapSettings`] both are
-//! built with. It never imports `sim`, `eval` or `experiment`: the truth
-//! cannot reach it (docs/architecture.md).
+//! built with — and the one map builder ([`build_map`]) that serves every
+//! method for simulated and recorded [`Scan`]s alike. It never imports
+//! `sim`, `eval` or `experiment`: the truth cannot reach it
+//! (docs/architecture.md).
 //!
 //! ```
 //! use sigmap::geometry::{Point3, Vector3};
@@ -21,14 +23,18 @@
 //! assert!(tree.value_at(&Point3::new(0.0, 0.0, 0.2)).unwrap() < 0.0); // free
 //! ```
 
+pub mod build;
 pub mod chord;
+pub mod measured;
 pub mod merge;
+pub mod method;
 pub mod octomap_io;
 pub mod octree;
 pub mod opdf;
 pub mod pipeline;
 pub mod pooling;
 pub mod ray_update;
+pub mod scan;
 pub mod scan_graph;
 pub mod settings;
 pub mod shared_motion;
@@ -36,5 +42,8 @@ pub mod spherical;
 pub mod surface_cells;
 pub mod viewpoint;
 
+pub use build::{build_map, build_map_with, BuildExtras};
+pub use method::Method;
 pub use octree::{Clamp, Key, Leaf, Octree, TreeStats};
+pub use scan::{BeamLayout, Layouts, MapperView, Scan};
 pub use settings::MapSettings;

@@ -74,10 +74,10 @@ pub fn local_grid_of(
 }
 
 /// Grid x = camera z (boresight), grid y = camera x, grid z = camera y.
-const CAMERA_FROM_GRID: Matrix3 = Matrix3::new(0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0);
+pub const CAMERA_FROM_GRID: Matrix3 = Matrix3::new(0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0);
 
 /// The grid's azimuth and elevation axes: one bin per raster column and row.
-fn raster_axes(raster: Raster) -> (Axis, Axis) {
+pub fn raster_axes(raster: Raster) -> (Axis, Axis) {
     let h_step = if raster.horizontal.len() >= 2 {
         raster.horizontal[1] - raster.horizontal[0]
     } else {

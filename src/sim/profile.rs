@@ -1,10 +1,10 @@
 //! Error profiles: the calibrated Gaussian errors of every link of the chain
 //! `X_s = T_sw⁻¹ T_rw T_cr X_c` and of the range measurement.
 
-use super::sensor::RangeModel;
 use crate::error::{read_toml_with, Error, Result};
 use crate::geometry::Matrix6;
 use crate::uncertainty::CovarianceSpec;
+use crate::uncertainty::RangeModel;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 

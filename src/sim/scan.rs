@@ -3,68 +3,14 @@
 //! aside for scoring.
 
 use super::scene::Scene;
-use super::sensor::{RangeModel, Scanner};
+use super::sensor::Scanner;
 use super::streams::{Stream, Streams, BEAM_BLOCK};
 use crate::geometry::{Isometry3, Point3, Vector3};
-use crate::uncertainty::UncertainPose;
+use crate::mapping::scan::{BeamStatus, Measurement};
+use crate::uncertainty::RangeModel;
 use rand::Rng;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
-
-/// The modeller's belief about the chain `X_s = T_sw⁻¹ T_rw T_cr X_c`:
-/// nominal poses and their covariances.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NominalChain {
-    /// T_sw: the scene in the world.
-    pub world_from_scene: UncertainPose,
-    /// T_rw: the robot flange in the world.
-    pub world_from_robot: UncertainPose,
-    /// T_cr: the laser on the flange.
-    pub robot_from_camera: UncertainPose,
-}
-
-impl NominalChain {
-    /// The nominal `scene_from_camera = T_sw⁻¹ T_rw T_cr`.
-    pub fn scene_from_camera(&self) -> Isometry3 {
-        self.world_from_scene.mean.to_isometry().inverse()
-            * self.world_from_robot.mean.to_isometry()
-            * self.robot_from_camera.mean.to_isometry()
-    }
-}
-
-/// Why a beam has no range.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum BeamStatus {
-    /// A measured range.
-    Hit,
-    /// Nothing within the maximum range (a miss, or a surface too far).
-    NoReturn,
-    /// The surface is nearer than the minimum range.
-    TooClose,
-    /// The beam hit but the sensor dropped it.
-    Dropout,
-}
-
-impl BeamStatus {
-    /// The word used in files.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            BeamStatus::Hit => "hit",
-            BeamStatus::NoReturn => "no_return",
-            BeamStatus::TooClose => "too_close",
-            BeamStatus::Dropout => "dropout",
-        }
-    }
-}
-
-/// One beam as the sensor reports it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Measurement {
-    /// What happened.
-    pub status: BeamStatus,
-    /// The measured range (m); NaN unless `status` is `Hit`.
-    pub range: f64,
-}
 
 /// What really happened to one beam (scoring only).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -85,20 +31,6 @@ pub struct ScanTruth {
     pub scene_from_camera: Isometry3,
     /// One entry per beam.
     pub beams: Vec<BeamTruth>,
-}
-
-/// One viewpoint's scan: all a mapper may see of it. The truth behind it
-/// is a separate [`ScanTruth`], which map building never receives.
-#[derive(Clone, Debug)]
-pub struct Scan {
-    /// Viewpoint index within the experiment.
-    pub viewpoint: usize,
-    /// Nominal joint configuration.
-    pub joints: Vec<f64>,
-    /// The believed chain with covariances.
-    pub chain: NominalChain,
-    /// One measurement per beam of the scanner, in its order.
-    pub measurements: Vec<Measurement>,
 }
 
 /// Rotates the unit vector `d` by the small angles `(a, b)` about two axes
@@ -133,7 +65,7 @@ pub fn cast_beams(
     streams: &Streams,
     viewpoint: u32,
 ) -> (Vec<Measurement>, Vec<BeamTruth>) {
-    let n = scanner.directions.len();
+    let n = scanner.directions().len();
     let mut measurements = vec![
         Measurement {
             status: BeamStatus::NoReturn,
@@ -152,7 +84,7 @@ pub fn cast_beams(
     measurements
         .par_chunks_mut(BEAM_BLOCK)
         .zip(truth.par_chunks_mut(BEAM_BLOCK))
-        .zip(scanner.directions.par_chunks(BEAM_BLOCK))
+        .zip(scanner.directions().par_chunks(BEAM_BLOCK))
         .enumerate()
         .for_each(|(block, ((out, true_out), directions))| {
             let mut rng = streams.rng(Stream::Beams {
@@ -240,7 +172,7 @@ mod tests {
             0,
         );
         let mut hits = 0;
-        for ((m, t), d) in m.iter().zip(&t).zip(&scanner.directions) {
+        for ((m, t), d) in m.iter().zip(&t).zip(scanner.directions()) {
             // Analytic ray-sphere distance from the origin along d.
             // |t d − c|² = r² with c = (0, 0, 2): t² − 4 d_z t + 3.75 = 0.
             let b = -4.0 * d.z;

@@ -1,7 +1,9 @@
 //! The laser range scanner: a raster (or a single line) of beams in the
 //! `laser` frame, and its range-error model.
 
-use crate::geometry::{Matrix3, Vector3};
+use crate::geometry::Vector3;
+use crate::mapping::scan::{check_clearing, BeamLayout, MAX_BEAMS_PER_VIEWPOINT};
+use crate::mapping::viewpoint::Raster;
 use serde::Deserialize;
 
 /// The scanner's geometry as written in an experiment's `[sensor]` table.
@@ -30,8 +32,9 @@ pub struct ScannerSpec {
 /// A scanner ready to cast: its beam directions in the laser frame.
 #[derive(Clone, Debug)]
 pub struct Scanner {
-    /// Unit beam directions, row by row (vertical angle outer).
-    pub directions: Vec<Vector3>,
+    /// Its beams as a mapper sees them: unit directions row by row
+    /// (vertical angle outer), one grid bin per beam.
+    pub layout: BeamLayout,
     /// Horizontal angles of the columns (rad), increasing.
     pub horizontal_angles: Vec<f64>,
     /// Vertical angles of the rows (rad), increasing.
@@ -45,16 +48,6 @@ pub struct Scanner {
     /// Farthest reported range (m).
     pub max_range: f64,
 }
-
-/// Most beams per viewpoint (a 2000 x 2000 raster): beyond it a run's scans
-/// and local grids no longer fit in a workstation's memory.
-pub const MAX_BEAMS_PER_VIEWPOINT: f64 = 4_000_000.0;
-
-/// Most finest cells the boundary of one viewpoint's cleared space may hold
-/// ([`Scanner::check_clearing`]): the uncertainty-aware merge evaluates each
-/// (about a microsecond and tens of bytes apiece), so beyond this one map
-/// takes minutes and gigabytes.
-pub const MAX_CLEARED_BOUNDARY_CELLS: f64 = 1e8;
 
 /// How many angles `angles` gives (as a float, so that absurd steps are
 /// caught before anything is allocated).
@@ -128,7 +121,7 @@ impl ScannerSpec {
         } else {
             angles(self.vertical_fov_deg, v_step)
         };
-        let directions = vertical
+        let directions: Vec<Vector3> = vertical
             .iter()
             .flat_map(|&v| {
                 horizontal
@@ -136,8 +129,13 @@ impl ScannerSpec {
                     .map(move |&h| Vector3::new(v.cos() * h.sin(), v.sin(), v.cos() * h.cos()))
             })
             .collect();
+        let raster = Raster {
+            horizontal: &horizontal,
+            vertical: &vertical,
+        };
+        let layout = BeamLayout::raster(directions, raster);
         Ok(Scanner {
-            directions,
+            layout,
             columns: horizontal.len(),
             rows: vertical.len(),
             horizontal_angles: horizontal,
@@ -149,112 +147,16 @@ impl ScannerSpec {
 }
 
 impl Scanner {
-    /// The finest cells of edge `resolution` on the boundary of the space one
-    /// viewpoint clears when none of its beams returns. The boundary is the
-    /// surface of the field of view's pyramid out to the maximum range R
-    /// (half-angles α, β of the outermost columns and rows), of area `A = R²
-    /// (4 tan α tan β + 2 tan α / cos β + 2 tan β / cos α)`; the cells whose
-    /// circumscribed ball (radius √3/2 of an edge) meets it fill a layer √3
-    /// edges thick: `√3 A / resolution²` cells. Inside, free space is updated
-    /// a whole node at a time; these cells one by one.
-    pub fn cleared_boundary_cells(&self, resolution: f64) -> f64 {
-        let half_angle = |angles: &[f64]| angles.iter().fold(0.0f64, |m, a| m.max(a.abs()));
-        let (alpha, beta) = (
-            half_angle(&self.horizontal_angles),
-            half_angle(&self.vertical_angles),
-        );
-        let area = self.max_range.powi(2)
-            * (4.0 * alpha.tan() * beta.tan()
-                + 2.0 * alpha.tan() / beta.cos()
-                + 2.0 * beta.tan() / alpha.cos());
-        3f64.sqrt() * area / (resolution * resolution)
+    /// Unit beam directions, laser frame, row by row (vertical angle outer).
+    pub fn directions(&self) -> &[Vector3] {
+        &self.layout.directions
     }
 
     /// Checks that a map of `resolution` can be built from this scanner by
-    /// the uncertainty-aware methods: at most
-    /// [`MAX_CLEARED_BOUNDARY_CELLS`] cells on the boundary of a viewpoint's
-    /// cleared space ([`Scanner::cleared_boundary_cells`]).
+    /// the uncertainty-aware methods ([`check_clearing`]).
     pub fn check_clearing(&self, resolution: f64) -> Result<(), String> {
-        let cells = self.cleared_boundary_cells(resolution);
-        if cells <= MAX_CLEARED_BOUNDARY_CELLS {
-            return Ok(());
-        }
-        let range = self.max_range;
-        let range = if range < 1e6 {
-            format!("{range}")
-        } else {
-            format!("{range:e}")
-        };
-        Err(format!(
-            "[sensor] max_range = {range} m at resolution {resolution} m: a viewpoint whose beams \
-             all miss clears space bounded by {cells:.2e} cells, which the uncertainty-aware \
-             methods evaluate one by one; sigmap handles at most \
-             {MAX_CLEARED_BOUNDARY_CELLS:.0e} (lower max_range or use a coarser resolution)"
-        ))
-    }
-}
-
-/// Gaussian range error `σ(r) = σ0 + k r`, optional angular jitter of the true
-/// beam direction, optional dropout.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct RangeModel {
-    /// Constant part of the range standard deviation (m).
-    pub sigma0: f64,
-    /// Growth of the standard deviation with range (m per m).
-    #[serde(default)]
-    pub k: f64,
-    /// Standard deviation of the beam direction about each of its two
-    /// perpendicular axes (radians).
-    #[serde(default)]
-    pub angular_sigma: f64,
-    /// Probability that a beam that hits returns nothing.
-    #[serde(default)]
-    pub dropout: f64,
-}
-
-impl RangeModel {
-    /// Checks the numbers; errors are phrased for the `[range]` table.
-    pub fn check(&self) -> Result<(), String> {
-        // Beyond these a "range sensor" says nothing and the statistics
-        // overflow: a metre of noise, a metre per metre, half a radian.
-        for (name, value, limit) in [
-            ("sigma0", self.sigma0, 1.0),
-            ("k", self.k, 1.0),
-            ("angular_sigma", self.angular_sigma, 0.5),
-        ] {
-            if !value.is_finite() || !(0.0..=limit).contains(&value) {
-                return Err(format!(
-                    "[range] {name} = {value:e} must be between 0 and {limit}"
-                ));
-            }
-        }
-        if !(0.0..1.0).contains(&self.dropout) {
-            return Err(format!(
-                "[range] dropout = {} must be a probability in [0, 1)",
-                self.dropout
-            ));
-        }
-        Ok(())
-    }
-
-    /// Range standard deviation at range `r`.
-    #[inline]
-    pub fn sigma(&self, r: f64) -> f64 {
-        self.sigma0 + self.k * r
-    }
-
-    /// Covariance of the measured point `r d` in the laser frame (docs/math.md §4.5):
-    /// `σ_r² d dᵀ + r² σ_a² (I − d dᵀ)` for a unit direction `d`.
-    pub fn point_covariance(&self, direction: &Vector3, r: f64) -> Matrix3 {
-        self.point_covariance_with(direction, r, self.sigma(r))
-    }
-
-    /// The same with the range standard deviation `sr` given (a pooled range).
-    pub fn point_covariance_with(&self, direction: &Vector3, r: f64, sr: f64) -> Matrix3 {
-        let ddt = direction * direction.transpose();
-        ddt * (sr * sr)
-            + (Matrix3::identity() - ddt) * (r * r * self.angular_sigma * self.angular_sigma)
+        let half_angles = self.layout.half_angles.expect("a scanner is a raster");
+        check_clearing(half_angles, self.max_range, resolution)
     }
 }
 
@@ -278,13 +180,13 @@ mod tests {
         let scanner = spec().build().unwrap();
         assert_eq!(scanner.columns, 121);
         assert_eq!(scanner.rows, 41);
-        assert_eq!(scanner.directions.len(), 121 * 41);
-        for d in &scanner.directions {
+        assert_eq!(scanner.directions().len(), 121 * 41);
+        for d in scanner.directions() {
             assert!((d.norm() - 1.0).abs() < 1e-15);
         }
-        let centre = scanner.directions[20 * 121 + 60];
+        let centre = scanner.directions()[20 * 121 + 60];
         assert!((centre - Vector3::z()).norm() < 1e-15);
-        let corner = scanner.directions[0];
+        let corner = scanner.directions()[0];
         assert!(
             (corner.x - (-20f64).to_radians().cos() * (-30f64).to_radians().sin()).abs() < 1e-15
         );
@@ -301,32 +203,5 @@ mod tests {
         bad = spec();
         bad.horizontal_step_deg = f64::NAN;
         assert!(bad.build().is_err());
-    }
-
-    #[test]
-    fn point_covariance_has_range_and_lateral_parts() {
-        let model = RangeModel {
-            sigma0: 0.001,
-            k: 0.002,
-            angular_sigma: 0.001,
-            dropout: 0.0,
-        };
-        let d = Vector3::new(0.0, 0.6, 0.8);
-        let c = model.point_covariance(&d, 2.0);
-        assert!(((d.transpose() * c * d)[0] - 0.005f64.powi(2)).abs() < 1e-15);
-        let lateral = Vector3::x();
-        assert!(((lateral.transpose() * c * lateral)[0] - 4e-6).abs() < 1e-15);
-        assert!(RangeModel {
-            dropout: 1.0,
-            ..model
-        }
-        .check()
-        .is_err());
-        assert!(RangeModel {
-            sigma0: -1.0,
-            ..model
-        }
-        .check()
-        .is_err());
     }
 }

@@ -29,6 +29,7 @@ mod covariance;
 pub mod jacobian;
 pub mod monte_carlo;
 pub mod quadratic;
+mod range;
 pub mod unscented;
 
 pub use blind::BlindPropagator;
@@ -36,6 +37,7 @@ pub use chain::{read_chain_file, ChainLink, Gaussian3, UncertainChain, Uncertain
 pub use covariance::{check_covariance, sqrt_factor, standard_normal, CovarianceSpec};
 pub use jacobian::JacobianPropagator;
 pub use monte_carlo::MonteCarloPropagator;
+pub use range::RangeModel;
 pub use unscented::{SigmaSet, UnscentedPropagator};
 
 use crate::geometry::{Matrix3, Matrix6, Pose, Vector3};

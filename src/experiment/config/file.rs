@@ -44,6 +44,9 @@ pub(super) struct ExperimentFile {
     pub(super) viewpoints: Vec<ViewpointSpec>,
     #[serde(rename = "sweep", default)]
     pub(super) sweeps: Vec<SweepAxis>,
+    /// External mappers, run beside `methods`.
+    #[serde(rename = "mapper", default)]
+    pub(super) mappers: Vec<crate::experiment::external::MapperSpec>,
 }
 
 /// `beam_pooling` as written: `true` / `false`, or a mode's name (a string,

@@ -209,24 +209,25 @@ fn seeds_read_a_list_or_an_inclusive_range() {
 
 #[test]
 fn the_reference_is_a_listed_method_and_defaults_to_the_ray_update() {
-    use crate::experiment::model::Method::*;
+    use crate::mapping::Method::*;
+    let own = |methods: &[crate::mapping::Method]| -> Vec<RunMethod> {
+        methods.iter().map(|m| RunMethod::Own(*m)).collect()
+    };
     assert_eq!(
-        reference_method(None, &[Blind, Unscented, RayUpdate]),
-        Ok(RayUpdate)
+        reference_method(None, &own(&[Blind, Unscented, RayUpdate])),
+        Ok(RunMethod::Own(RayUpdate))
     );
-    assert_eq!(reference_method(None, &[Unscented, Blind]), Ok(Unscented));
     assert_eq!(
-        reference_method(Some("blind"), &[Unscented, Blind]),
-        Ok(Blind)
+        reference_method(None, &own(&[Unscented, Blind])),
+        Ok(RunMethod::Own(Unscented))
     );
-    let error = reference_method(Some("jacobian"), &[Unscented, Blind]).unwrap_err();
-    assert!(
-        error.contains("not one of `methods` (unscented, blind)"),
-        "{error}"
+    assert_eq!(
+        reference_method(Some("blind"), &own(&[Unscented, Blind])),
+        Ok(RunMethod::Own(Blind))
     );
-    let error = reference_method(Some("octomap"), &[Unscented]).unwrap_err();
+    let error = reference_method(Some("jacobian"), &own(&[Unscented, Blind])).unwrap_err();
     assert!(
-        error.starts_with("reference: unknown method 'octomap'"),
+        error.contains("not one of `methods` or the [[mapper]] tables (unscented, blind)"),
         "{error}"
     );
 }
@@ -249,7 +250,7 @@ fn an_experiment_file_with_a_seed_range_and_a_reference_loads() {
     assert_eq!(experiment.seeds, vec![11, 12, 13, 14]);
     assert_eq!(
         experiment.reference,
-        crate::experiment::model::Method::Blind
+        RunMethod::Own(crate::mapping::Method::Blind)
     );
     std::fs::write(&path, text.replace("\"11..14\"", "\"11..x\"")).unwrap();
     let error = Experiment::load(&path).err().unwrap().to_string();

@@ -1,7 +1,8 @@
 use super::*;
 use crate::experiment::export::scan_nodes;
-use crate::experiment::model::{build_map, MapperView};
 use crate::experiment::{simulate, Experiment};
+use crate::mapping::build_map;
+use crate::mapping::measured::measured_ranges;
 use crate::mapping::pooling::Pooling;
 use std::path::Path;
 
@@ -118,7 +119,7 @@ fn recorded_scans_map_as_the_simulated_scans_do() {
         scan.chain.world_from_robot.covariance = Matrix6::zeros();
         scan.chain.robot_from_camera.covariance = Matrix6::zeros();
     }
-    let view = MapperView::of(&experiment);
+    let view = experiment.mapper_view();
     let offset = Vector3::zeros();
     let nodes = scan_nodes(&view, &run.scans, &offset);
     let mut profile = experiment.profile.clone();
@@ -131,7 +132,7 @@ fn recorded_scans_map_as_the_simulated_scans_do() {
     let mut experiment = experiment;
     for pooling in [Pooling::Off, Pooling::Faces, Pooling::Windows] {
         experiment.map.beam_pooling = pooling;
-        let view = MapperView::of(&experiment);
+        let view = experiment.mapper_view();
         for method in [Method::RayUpdate, Method::Unscented] {
             let ours = build_map(&view, &run.scans, method, resolution, &offset).unwrap();
             let options = RecordedOptions {
@@ -199,19 +200,44 @@ fn pooling_a_cloud_needs_one_point_per_bin() {
         map_from_sensor: crate::geometry::Isometry3::identity(),
         points,
     };
-    let profile = quickstart().profile;
-    let range = &profile.range;
+    let experiment = quickstart();
+    let settings = MapSettings {
+        beam_pooling: Pooling::Faces,
+        ..experiment.map
+    };
+    let exact = UncertainPose::from_sigmas(Pose::identity(), [0.0; 6]);
+    let scan = Scan {
+        viewpoint: 7,
+        joints: Vec::new(),
+        chain: NominalChain {
+            world_from_scene: exact,
+            world_from_robot: exact,
+            robot_from_camera: exact,
+        },
+        measurements: node
+            .points
+            .iter()
+            .map(|p| point_measurement(p, f64::INFINITY))
+            .collect(),
+    };
     let points_with = |step: Option<f64>| {
-        let grids = node_grids(&node, step.map(f64::to_radians)).unwrap();
-        node_points(&node, &grids, range, Pooling::Faces, f64::INFINITY)
+        let layout = node_layout(&node, step.map(f64::to_radians)).unwrap();
+        let view = MapperView {
+            layouts: Layouts::PerScan(std::slice::from_ref(&layout)),
+            range: &experiment.profile.range,
+            max_range: f64::INFINITY,
+            settings: &settings,
+            sigma_set: SigmaSet::Paper,
+        };
+        measured_ranges(&view, &layout, &scan)
     };
     let pooled = points_with(None).unwrap();
     assert!(pooled.iter().all(Option::is_some));
-    let err = points_with(Some(1.0)).unwrap_err().to_string();
+    let err = points_with(Some(1.0)).unwrap_err();
     assert!(
         err.contains("scan 7")
             && err.contains("one point per angular bin")
-            && err.contains("--angular-step"),
+            && err.contains("angular step"),
         "{err}"
     );
 }

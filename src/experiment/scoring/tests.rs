@@ -1,8 +1,9 @@
 use super::*;
 use crate::experiment::export::scan_nodes;
-use crate::experiment::model::{MapperView, Method};
 use crate::experiment::runner::{quickstart_with_profile, run_seed};
+use crate::experiment::RunMethod;
 use crate::geometry::Vector3;
+use crate::mapping::Method;
 use std::path::Path;
 
 /// The quickstart with an exact arm, hand-eye and registration and a
@@ -28,7 +29,7 @@ fn an_exact_run_scored_against_its_scene_and_scans_gives_the_run_row() {
     let run = simulate(&experiment, seed, |_| {}).unwrap();
     let offset = experiment.map_offset(seed);
     assert!(offset.norm() > 0.0);
-    let view = MapperView::of(&experiment);
+    let view = experiment.mapper_view();
     let nodes = scan_nodes(&view, &run.scans, &offset);
     let map_from_scene = Isometry3::translation(offset.x, offset.y, offset.z);
     for ((method, map), run_row) in experiment.methods.iter().zip(&maps).zip(&rows) {
@@ -70,7 +71,7 @@ fn an_exact_run_scored_against_its_scene_and_scans_gives_the_run_row() {
     let ray_update = experiment
         .methods
         .iter()
-        .position(|m| *m == Method::RayUpdate)
+        .position(|m| *m == RunMethod::Own(Method::RayUpdate))
         .unwrap();
     let row = score_against_scene(
         &maps[ray_update],

@@ -114,7 +114,7 @@ fn row(cell: &str, seed: u64, method: &str, f1: f64, anees: f64) -> RunRow {
 
 #[test]
 fn paired_rows_cover_every_cell_method_and_metric_but_the_reference() {
-    use Method::*;
+    use crate::mapping::Method::*;
     let cells = vec!["a=1".to_string(), "a=2".to_string()];
     let mut rows = Vec::new();
     for cell in &cells {
@@ -131,8 +131,8 @@ fn paired_rows_cover_every_cell_method_and_metric_but_the_reference() {
             rows.push(row(cell, seed, "ray_update", 0.70 + 0.01 * s, f64::NAN));
         }
     }
-    let methods = [Blind, Unscented, RayUpdate];
-    let out = paired(&rows, &cells, &methods, RayUpdate);
+    let methods = [Blind, Unscented, RayUpdate].map(RunMethod::Own);
+    let out = paired(&rows, &cells, &methods, &RunMethod::Own(RayUpdate));
     let summarised = METRICS.iter().filter(|m| m.summarised()).count();
     // The ray update has no ANEES: no row pairs on it.
     assert_eq!(out.len(), 2 * 2 * (summarised - 1));
@@ -151,7 +151,7 @@ fn paired_rows_cover_every_cell_method_and_metric_but_the_reference() {
     let equal = out.iter().find(|r| r.metric == "brier").unwrap();
     assert_eq!((equal.mean, equal.verdict), (0.0, Verdict::WithinNoise));
     // Against unscented, blind's ANEES is worse (farther from 3).
-    let out = paired(&rows, &cells, &methods, Unscented);
+    let out = paired(&rows, &cells, &methods, &RunMethod::Own(Unscented));
     let anees = out
         .iter()
         .find(|r| r.method == "blind" && r.metric == "anees")
@@ -169,7 +169,11 @@ fn summary_intervals_stay_in_the_metric_range() {
         row("", 2, "blind", 1.0, 0.1),
         row("", 3, "blind", 0.9, 9.0),
     ];
-    let summary = summarise(&rows, &cells, &[Method::Blind]);
+    let summary = summarise(
+        &rows,
+        &cells,
+        &[RunMethod::Own(crate::mapping::Method::Blind)],
+    );
     let get = |metric: &str| summary.iter().find(|s| s.metric == metric).unwrap();
     let (mean, half) = mean_and_half_width(&[1.0, 1.0, 0.9]);
     assert!(mean + half > 1.0);

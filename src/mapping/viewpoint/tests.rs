@@ -501,7 +501,7 @@ fn the_scanners_clearing_estimate_counts_the_cells_the_merge_evaluates() {
         let scanner = spec.build().unwrap();
         let rotation = looking_down();
         let misses: Vec<BeamEnd> = scanner
-            .directions
+            .directions()
             .iter()
             .map(|d| BeamEnd::Miss {
                 direction: rotation * d,
@@ -520,7 +520,12 @@ fn the_scanners_clearing_estimate_counts_the_cells_the_merge_evaluates() {
         );
         let mut tree = Octree::new(resolution);
         let stats = merge(&mut tree, &grid, &MergeOptions::default());
-        let ratio = stats.fine_updates as f64 / scanner.cleared_boundary_cells(resolution);
+        let ratio = stats.fine_updates as f64
+            / crate::mapping::scan::cleared_boundary_cells(
+                scanner.layout.half_angles.unwrap(),
+                scanner.max_range,
+                resolution,
+            );
         assert!(
             (0.8..1.3).contains(&ratio),
             "{fov:?} at {resolution}: {stats:?}, ratio {ratio}"

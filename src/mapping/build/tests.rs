@@ -1,6 +1,12 @@
 use super::*;
+use crate::experiment::Experiment;
+use crate::geometry::Matrix6;
 use crate::geometry::Pose;
+use crate::mapping::measured::*;
+use crate::mapping::method::*;
 use crate::mapping::octree::{Key, DEPTH};
+use crate::mapping::scan::*;
+use crate::uncertainty::SigmaSet;
 use crate::uncertainty::UncertainPose;
 use std::path::Path;
 
@@ -39,8 +45,8 @@ fn a_whole_cell_offset_shifts_the_map_by_that_cell() {
     // whole-cell offset moves every cell's value to the cell that many
     // keys away, up to the rounding of a point near a cell face.
     let experiment = quickstart();
-    let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
-    let view = MapperView::of(&experiment);
+    let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
+    let view = experiment.mapper_view();
     let resolution = 0.02;
     let shift = [3i32, -2, 1];
     let offset = Vector3::from(shift.map(|s| f64::from(s) * resolution));
@@ -72,8 +78,8 @@ fn a_map_is_the_same_file_whatever_the_thread_count() {
     // Scans are prepared on every thread and applied in order
     // (mapping::pipeline): one, two and three threads, the same bytes.
     let experiment = quickstart();
-    let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
-    let view = MapperView::of(&experiment);
+    let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
+    let view = experiment.mapper_view();
     let clamp = view.settings.update.clamp;
     for method in [Method::Unscented, Method::Correlated, Method::RayUpdate] {
         let file = |threads: usize| {
@@ -98,8 +104,8 @@ fn without_shared_error_the_correlated_map_is_the_unscented_map() {
     let mut experiment = quickstart();
     let offset = Vector3::zeros();
     let maps = |experiment: &Experiment| {
-        let run = super::super::simulate(experiment, 1, |_| {}).unwrap();
-        let view = MapperView::of(experiment);
+        let run = crate::experiment::simulate(experiment, 1, |_| {}).unwrap();
+        let view = experiment.mapper_view();
         let map = |m| build_map(&view, &run.scans, m, 0.02, &offset).unwrap();
         (map(Method::Unscented), map(Method::Correlated))
     };
@@ -120,14 +126,14 @@ fn the_shared_error_is_taken_once_on_the_fused_map() {
     // viewpoints fuse identically (arm error only), so the maps differ
     // only by the shared-motion step, which must have run.
     let experiment = quickstart();
-    let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+    let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
     let mut believed_exact = run.scans.clone();
     for scan in &mut believed_exact {
         scan.chain.world_from_scene.covariance = Matrix6::zeros();
         scan.chain.robot_from_camera.covariance = Matrix6::zeros();
     }
     let offset = Vector3::zeros();
-    let view = MapperView::of(&experiment);
+    let view = experiment.mapper_view();
     let map = |scans: &[Scan]| build_map(&view, scans, Method::Correlated, 0.02, &offset).unwrap();
     let (with_shared, without) = (map(&run.scans), map(&believed_exact));
     assert_ne!(with_shared, without, "the shared-motion step ran");
@@ -136,13 +142,14 @@ fn the_shared_error_is_taken_once_on_the_fused_map() {
 #[test]
 fn pooling_narrows_most_hits_and_only_when_asked() {
     let mut experiment = quickstart();
-    let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+    let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
     let scan = &run.scans[0];
     let along = |e: &Experiment| -> Vec<(f64, f64)> {
-        let view = MapperView::of(e);
-        measured_ranges(&view, scan)
+        let view = e.mapper_view();
+        measured_ranges(&view, &e.scanner.layout, scan)
+            .unwrap()
             .iter()
-            .zip(&e.scanner.directions)
+            .zip(e.scanner.directions())
             .filter_map(|(p, d)| {
                 let p = surface_point(view.range, d, p.as_ref()?);
                 Some((
@@ -174,25 +181,25 @@ fn maps_draw_pooled_beams_without_the_slide_and_the_nees_keeps_it() {
     // the slide r σ_a tan θ on a slanted plane.
     let mut experiment = quickstart();
     experiment.map.beam_pooling = Pooling::Windows;
-    let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
-    let view = MapperView::of(&experiment);
+    let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
+    let view = experiment.mapper_view();
     let scan = &run.scans[0];
-    let measured = measured_ranges(&view, scan);
-    let chain = scan_chain(scan);
-    let propagator = propagator(Method::Blind, &chain, view.sigma_set).unwrap();
-    let origin = propagator.origin().mean;
-    let scene_from_camera = chain.nominal().rotation.to_rotation_matrix().into_inner();
+    let measured = measured_ranges(&view, &experiment.scanner.layout, scan).unwrap();
+    let all = [measured.clone()];
+    let extras = BuildExtras {
+        measured: Some(&all),
+        done: None,
+    };
+    let prepared = PreparedScan::new(&view, &run.scans, 0, extras, Method::Blind).unwrap();
+    let origin = prepared.origin.mean;
     let (mut pooled, mut slanted) = (0, 0);
-    for (k, (p, d)) in measured.iter().zip(&view.scanner.directions).enumerate() {
+    for (k, (p, d)) in measured
+        .iter()
+        .zip(experiment.scanner.directions())
+        .enumerate()
+    {
         let Some(p) = p else { continue };
-        let end = map_beam_end(
-            &view,
-            scan,
-            Some(&measured),
-            k,
-            propagator.as_ref(),
-            &scene_from_camera,
-        );
+        let end = prepared.beam_end(&view, Some(&measured), k, &Vector3::zeros());
         let Some(BeamEnd::Hit { point, covariance }) = end else {
             panic!("beam {k} measured a range and is not a hit");
         };
@@ -216,11 +223,11 @@ fn maps_draw_pooled_beams_without_the_slide_and_the_nees_keeps_it() {
 #[test]
 fn the_ray_update_ends_its_rays_at_the_pooled_points() {
     let mut experiment = quickstart();
-    let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+    let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
     let resolution = 0.02;
     let ray_map = |e: &Experiment| {
         build_map(
-            &MapperView::of(e),
+            &e.mapper_view(),
             &run.scans,
             Method::RayUpdate,
             resolution,
@@ -231,17 +238,17 @@ fn the_ray_update_ends_its_rays_at_the_pooled_points() {
     };
     let raw = ray_map(&experiment);
     experiment.map.beam_pooling = Pooling::Faces;
-    let view = MapperView::of(&experiment);
+    let view = experiment.mapper_view();
     // OctoMap's update, scan by scan, of rays ending at the pooled points.
     let mut expected = Octree::new(resolution);
     for scan in &run.scans {
-        let points = measured_ranges(&view, scan);
+        let points = measured_ranges(&view, &experiment.scanner.layout, scan).unwrap();
         let pose = scan.chain.scene_from_camera();
         let (mut hits, mut misses) = (Vec::new(), Vec::new());
         for ((m, d), p) in scan
             .measurements
             .iter()
-            .zip(&view.scanner.directions)
+            .zip(experiment.scanner.directions())
             .zip(&points)
         {
             match m.status {
@@ -256,7 +263,7 @@ fn the_ray_update_ends_its_rays_at_the_pooled_points() {
             &origin,
             &hits,
             &misses,
-            view.scanner.max_range,
+            view.max_range,
         );
     }
     let pooled = ray_map(&experiment);
@@ -269,12 +276,16 @@ fn the_ray_update_ends_its_rays_at_the_pooled_points() {
     let measured: Vec<_> = run
         .scans
         .iter()
-        .map(|s| measured_ranges(&view, s))
+        .map(|s| measured_ranges(&view, &experiment.scanner.layout, s).unwrap())
         .collect();
-    let shared = build_map_measured(
+    let extras = BuildExtras {
+        measured: Some(&measured),
+        done: None,
+    };
+    let shared = build_map_with(
         &view,
         &run.scans,
-        Some(&measured),
+        extras,
         Method::RayUpdate,
         resolution,
         &Vector3::zeros(),
@@ -286,10 +297,10 @@ fn the_ray_update_ends_its_rays_at_the_pooled_points() {
 #[test]
 fn the_experiments_sigma_set_reaches_the_maps() {
     let mut experiment = quickstart();
-    let run = super::super::simulate(&experiment, 1, |_| {}).unwrap();
+    let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
     let map = |e: &Experiment, method| {
         let tree = build_map(
-            &MapperView::of(e),
+            &e.mapper_view(),
             &run.scans,
             method,
             0.02,

@@ -1,0 +1,423 @@
+//! External mappers (`[[mapper]]`): another program maps each run's exported
+//! scans, and sigmap scores its map exactly like its own (docs/cli.md,
+//! "Your own mapper in a sweep").
+//!
+//! The protocol: for every cell and seed sigmap exports the run's scans (the
+//! believed poses only, as `sigmap export` writes them) into a private
+//! folder, runs the command there without a shell, with a timeout, and reads
+//! the octree file the command wrote. The command's arguments may hold the
+//! placeholders of [`PLACEHOLDERS`].
+
+use super::export::write_export;
+use crate::error::{Error, Result};
+use crate::geometry::Vector3;
+use crate::mapping::octomap_io::read_octree;
+use crate::mapping::{Clamp, MapperView, Octree, Scan};
+use serde::Deserialize;
+use std::io::Read as _;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// The placeholders a mapper's `command` and `map` may hold, and what each
+/// becomes.
+pub const PLACEHOLDERS: [(&str, &str); 7] = [
+    (
+        "{scans}",
+        "the run's OctoMap ScanGraph (believed poses only)",
+    ),
+    ("{poses}", "the viewpoints' poses, a TUM trajectory"),
+    (
+        "{plys}",
+        "the folder of per-viewpoint PLYs (vp_NNN.ply, map frame)",
+    ),
+    (
+        "{dir}",
+        "a private empty folder for this run (the command's working folder)",
+    ),
+    ("{resolution}", "the experiment's resolution (m)"),
+    ("{max_range}", "the scanner's maximum range (m)"),
+    ("{seed}", "the run's seed"),
+];
+
+/// The longest a mapper may be given (s): a day.
+const MAX_TIMEOUT_S: f64 = 86_400.0;
+
+/// How much of a failed mapper's stderr the error shows (bytes, its end).
+const STDERR_TAIL: usize = 400;
+
+/// A `[[mapper]]` table as written.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapperSpec {
+    /// The method name its rows carry.
+    pub name: String,
+    /// The program and its arguments, with placeholders.
+    pub command: Vec<String>,
+    /// The octree file (`.bt` or `.ot`) the command writes, with
+    /// placeholders; relative to `{dir}`.
+    pub map: String,
+    /// Seconds before the command is stopped (default 300).
+    pub timeout_s: Option<f64>,
+}
+
+/// An external mapper, checked: a method of the experiment beside sigmap's own.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExternalMapper {
+    /// The method name its rows carry.
+    pub name: String,
+    /// The program (as written) and its arguments; an argument naming a file
+    /// beside the experiment is replaced by its absolute path.
+    pub command: Vec<String>,
+    /// The map file template.
+    pub map: String,
+    /// How long it may run.
+    pub timeout: Duration,
+    /// The experiment's folder, which relative paths start from.
+    pub base: PathBuf,
+}
+
+impl MapperSpec {
+    /// Checks the table: a new method name, a command, known placeholders
+    /// and a sane timeout. `taken` are the names already in use. Errors are
+    /// phrased for the experiment file.
+    pub fn check(self, base: &Path, taken: &[&str]) -> std::result::Result<ExternalMapper, String> {
+        let name = self.name.trim().to_string();
+        let what = format!("[[mapper]] '{name}'");
+        let valid = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '-';
+        if name.is_empty() || !name.chars().all(valid) {
+            return Err(format!(
+                "{what}: a mapper's name is letters, digits, '_' and '-' (it names a method in \
+                 runs.csv and a map file)"
+            ));
+        }
+        if taken.contains(&name.as_str()) {
+            return Err(format!(
+                "{what}: the name is already a method of this experiment; give the mapper a \
+                 name of its own"
+            ));
+        }
+        if self.command.is_empty() || self.command[0].trim().is_empty() {
+            return Err(format!("{what}: `command` must name a program"));
+        }
+        for text in self.command.iter().chain([&self.map]) {
+            check_placeholders(text).map_err(|e| format!("{what}: {e}"))?;
+        }
+        if self.map.trim().is_empty() {
+            return Err(format!(
+                "{what}: `map` must name the octree file the command writes"
+            ));
+        }
+        let timeout_s = self.timeout_s.unwrap_or(300.0);
+        if !timeout_s.is_finite() || timeout_s <= 0.0 || timeout_s > MAX_TIMEOUT_S {
+            return Err(format!(
+                "{what}: timeout_s = {timeout_s} must be positive seconds, at most \
+                 {MAX_TIMEOUT_S} (a day)"
+            ));
+        }
+        let command = self
+            .command
+            .iter()
+            .enumerate()
+            .map(|(i, arg)| match beside(base, arg) {
+                Some(path) if i > 0 || arg.contains('/') => path.to_string_lossy().into_owned(),
+                _ => arg.clone(),
+            })
+            .collect();
+        Ok(ExternalMapper {
+            name,
+            command,
+            map: self.map,
+            timeout: Duration::from_secs_f64(timeout_s),
+            base: base.to_path_buf(),
+        })
+    }
+}
+
+/// The file `arg` names beside the experiment (a relative path without
+/// placeholders that exists there), absolute.
+fn beside(base: &Path, arg: &str) -> Option<PathBuf> {
+    if arg.contains('{') || arg.starts_with('-') || arg.is_empty() {
+        return None;
+    }
+    let path = base.join(arg);
+    path.is_file()
+        .then(|| std::fs::canonicalize(&path).unwrap_or(path))
+}
+
+/// Refuses a `{...}` that is not one of [`PLACEHOLDERS`].
+fn check_placeholders(text: &str) -> std::result::Result<(), String> {
+    let mut rest = text;
+    while let Some(start) = rest.find('{') {
+        let end = rest[start..]
+            .find('}')
+            .ok_or_else(|| format!("'{text}' opens a placeholder it does not close"))?;
+        let placeholder = &rest[start..start + end + 1];
+        if !PLACEHOLDERS.iter().any(|(p, _)| *p == placeholder) {
+            let known: Vec<&str> = PLACEHOLDERS.iter().map(|(p, _)| *p).collect();
+            return Err(format!(
+                "unknown placeholder {placeholder} in '{text}' (use {})",
+                known.join(", ")
+            ));
+        }
+        rest = &rest[start + end + 1..];
+    }
+    Ok(())
+}
+
+/// Where the run's inputs and the mapper's folder are, and the numbers the
+/// placeholders stand for.
+struct Placeholders {
+    scans: PathBuf,
+    poses: PathBuf,
+    plys: PathBuf,
+    dir: PathBuf,
+    resolution: f64,
+    max_range: f64,
+    seed: u64,
+}
+
+impl Placeholders {
+    fn fill(&self, text: &str) -> String {
+        let path = |p: &Path| p.to_string_lossy().into_owned();
+        text.replace("{scans}", &path(&self.scans))
+            .replace("{poses}", &path(&self.poses))
+            .replace("{plys}", &path(&self.plys))
+            .replace("{dir}", &path(&self.dir))
+            .replace("{resolution}", &self.resolution.to_string())
+            .replace("{max_range}", &self.max_range.to_string())
+            .replace("{seed}", &self.seed.to_string())
+    }
+}
+
+/// One run of a mapper: which cell and seed, with what scans.
+pub struct MapperRun<'a> {
+    /// The cell's label (for messages).
+    pub cell: &'a str,
+    /// The run's seed.
+    pub seed: u64,
+    /// What a mapper may know.
+    pub view: &'a MapperView<'a>,
+    /// The run's scans.
+    pub scans: &'a [Scan],
+    /// The map resolution (m).
+    pub resolution: f64,
+    /// `map = scene + offset`.
+    pub offset: &'a Vector3,
+    /// The clamp `.bt` leaves are read with.
+    pub clamp: Clamp,
+}
+
+impl ExternalMapper {
+    /// The program the command runs: a path (relative to the experiment's
+    /// folder) or a name looked up on `PATH`.
+    pub fn program(&self) -> Result<PathBuf> {
+        let program = &self.command[0];
+        let found = if program.contains('/') {
+            let path = self.base.join(program);
+            path.is_file().then_some(path)
+        } else {
+            std::env::var_os("PATH").and_then(|paths| {
+                std::env::split_paths(&paths)
+                    .map(|dir| dir.join(program))
+                    .find(|path| path.is_file())
+            })
+        };
+        found.ok_or_else(|| {
+            Error::Usage(format!(
+                "mapper {}: the program '{program}' is not {} (install it, or give its path)",
+                self.name,
+                if program.contains('/') {
+                    "a file beside the experiment"
+                } else {
+                    "on PATH"
+                }
+            ))
+        })
+    }
+
+    /// The files whose content makes this mapper what it is: the program
+    /// and every argument naming a file (a script): the input fingerprint
+    /// holds their hashes, so a rebuilt mapper is never resumed stale.
+    pub fn inputs(&self) -> Result<Vec<PathBuf>> {
+        let mut files = vec![self.program()?];
+        files.extend(
+            self.command[1..]
+                .iter()
+                .map(PathBuf::from)
+                .filter(|p| p.is_absolute() && p.is_file()),
+        );
+        Ok(files)
+    }
+
+    /// Runs the mapper on one run's scans and reads its map. Every failure
+    /// (the command fails or outlives its timeout, no map, a map sigmap
+    /// cannot read or at another resolution) is one line naming the mapper,
+    /// the cell and the seed, with the end of the command's stderr.
+    pub fn build(&self, run: &MapperRun) -> Result<Octree> {
+        let program = self.program()?;
+        let folder = PrivateFolder::new()
+            .map_err(|e| self.failure(run, format!("no private folder: {e}")))?;
+        let fail = |what: String| {
+            self.failure(
+                run,
+                format!("{what} (its files: {})", folder.path.display()),
+            )
+        };
+        let export = folder.path.join("scans");
+        let dir = folder.path.join("work");
+        std::fs::create_dir(&dir).map_err(|e| fail(format!("no private folder: {e}")))?;
+        write_export(
+            &export,
+            run.view,
+            run.scans,
+            (run.resolution, run.offset),
+            &format!("the run of seed {} for mapper {}", run.seed, self.name),
+        )?;
+        let places = Placeholders {
+            scans: export.join("scans.graph"),
+            poses: export.join("poses.txt"),
+            plys: export.clone(),
+            dir: dir.clone(),
+            resolution: run.resolution,
+            max_range: run.view.max_range,
+            seed: run.seed,
+        };
+        let args: Vec<String> = self.command[1..].iter().map(|a| places.fill(a)).collect();
+        let stderr_path = folder.path.join("stderr.txt");
+        let outcome = self.run_command(
+            &program,
+            &args,
+            &dir,
+            &folder.path.join("stdout.txt"),
+            &stderr_path,
+        );
+        let tail = stderr_tail(&stderr_path);
+        let with_tail = |what: String| {
+            if tail.is_empty() {
+                fail(what)
+            } else {
+                fail(format!("{what}; its stderr ends: {tail}"))
+            }
+        };
+        outcome.map_err(with_tail)?;
+        let map_path = dir.join(places.fill(&self.map));
+        if !map_path.is_file() {
+            return Err(with_tail(format!(
+                "it wrote no map at {}",
+                map_path.display()
+            )));
+        }
+        let map = read_octree(&map_path, run.clamp)
+            .map_err(|e| with_tail(format!("its map is not an octree sigmap reads ({e})")))?;
+        if (map.resolution() - run.resolution).abs() > 1e-9 * run.resolution {
+            return Err(fail(format!(
+                "its map has resolution {} m, the experiment {} m: build it at {{resolution}}",
+                map.resolution(),
+                run.resolution
+            )));
+        }
+        folder.remove();
+        Ok(map)
+    }
+
+    /// The one-line error of a failed run of this mapper.
+    fn failure(&self, run: &MapperRun, what: String) -> Error {
+        let cell = if run.cell.is_empty() {
+            String::new()
+        } else {
+            format!("cell {}, ", run.cell)
+        };
+        Error::Usage(format!(
+            "mapper {} ({cell}seed {}): {what}",
+            self.name, run.seed
+        ))
+    }
+
+    /// Runs `program args` in `dir` without a shell, its output into files,
+    /// stopped after the timeout.
+    fn run_command(
+        &self,
+        program: &Path,
+        args: &[String],
+        dir: &Path,
+        stdout: &Path,
+        stderr: &Path,
+    ) -> std::result::Result<(), String> {
+        let file = |path: &Path| std::fs::File::create(path).map_err(|e| format!("{e}"));
+        let mut child = Command::new(program)
+            .args(args)
+            .current_dir(dir)
+            .stdin(Stdio::null())
+            .stdout(file(stdout)?)
+            .stderr(file(stderr)?)
+            .spawn()
+            .map_err(|e| format!("could not start {}: {e}", program.display()))?;
+        let start = Instant::now();
+        let status = loop {
+            match child.try_wait() {
+                Ok(Some(status)) => break status,
+                Ok(None) if start.elapsed() > self.timeout => {
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    return Err(format!(
+                        "still running after its timeout of {} s; stopped",
+                        self.timeout.as_secs_f64()
+                    ));
+                }
+                Ok(None) => std::thread::sleep(Duration::from_millis(5)),
+                Err(e) => return Err(format!("lost track of the command: {e}")),
+            }
+        };
+        if status.success() {
+            Ok(())
+        } else {
+            Err(format!("the command failed ({status})"))
+        }
+    }
+}
+
+/// The last [`STDERR_TAIL`] bytes of a command's stderr, on one line.
+fn stderr_tail(path: &Path) -> String {
+    let mut bytes = Vec::new();
+    if let Ok(mut file) = std::fs::File::open(path) {
+        let _ = file.read_to_end(&mut bytes);
+    }
+    let start = bytes.len().saturating_sub(STDERR_TAIL);
+    String::from_utf8_lossy(&bytes[start..])
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// A folder of sigmap's own in the system's temporary folder, for one
+/// mapper run; removed when the mapper succeeded, kept (and named in the
+/// error) when it failed.
+struct PrivateFolder {
+    path: PathBuf,
+}
+
+impl PrivateFolder {
+    fn new() -> std::io::Result<Self> {
+        use std::sync::atomic::{AtomicU64, Ordering};
+        static NEXT: AtomicU64 = AtomicU64::new(0);
+        loop {
+            let n = NEXT.fetch_add(1, Ordering::Relaxed);
+            let path =
+                std::env::temp_dir().join(format!("sigmap-mapper-{}-{n}", std::process::id()));
+            match std::fs::create_dir(&path) {
+                Ok(()) => return Ok(Self { path }),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// Removes the folder: sigmap made it, and only the run wrote in it.
+    fn remove(self) {
+        let _ = std::fs::remove_dir_all(&self.path);
+    }
+}
+
+#[cfg(test)]
+mod tests;

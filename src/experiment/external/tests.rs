@@ -1,0 +1,78 @@
+use super::*;
+
+fn spec(command: &[&str], map: &str) -> MapperSpec {
+    MapperSpec {
+        name: "mine".into(),
+        command: command.iter().map(|s| s.to_string()).collect(),
+        map: map.into(),
+        timeout_s: None,
+    }
+}
+
+#[test]
+fn a_mapper_table_is_checked_before_any_run() {
+    let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
+    let ok = spec(&["graph2tree", "-i", "{scans}"], "{dir}/map.bt.ot")
+        .check(&base, &["ray_update"])
+        .unwrap();
+    assert_eq!(ok.timeout, Duration::from_secs(300));
+    let err = |s: MapperSpec, taken: &[&str]| s.check(&base, taken).unwrap_err();
+    assert!(err(spec(&["x", "{scan}"], "m.bt"), &[]).contains("unknown placeholder {scan}"));
+    assert!(err(spec(&["x", "{scans"], "m.bt"), &[]).contains("does not close"));
+    assert!(err(spec(&[], "m.bt"), &[]).contains("must name a program"));
+    assert!(err(spec(&["x"], ""), &[]).contains("`map`"));
+    assert!(err(spec(&["x"], "m.bt"), &["mine"]).contains("already a method"));
+    let mut named = spec(&["x"], "m.bt");
+    named.name = "my mapper".into();
+    assert!(err(named, &[]).contains("letters, digits"));
+    for timeout in [0.0, -1.0, f64::NAN, 1e9] {
+        let mut slow = spec(&["x"], "m.bt");
+        slow.timeout_s = Some(timeout);
+        assert!(err(slow, &[]).contains("timeout_s"), "{timeout}");
+    }
+}
+
+#[test]
+fn a_script_beside_the_experiment_is_passed_by_its_absolute_path() {
+    let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
+    let mapper = spec(
+        &["python3", "../mappers/ray_mapper.py", "{scans}"],
+        "{dir}/m.ot",
+    )
+    .check(&base, &[])
+    .unwrap();
+    let script = PathBuf::from(&mapper.command[1]);
+    assert!(script.is_absolute() && script.ends_with("mappers/ray_mapper.py"));
+    assert_eq!(mapper.command[2], "{scans}");
+    // The script is an input of the fingerprint beside the program.
+    let missing = spec(&["no-such-mapper-anywhere"], "m.bt")
+        .check(&base, &[])
+        .unwrap();
+    let e = missing.program().unwrap_err().to_string();
+    assert!(
+        e.contains("'no-such-mapper-anywhere' is not on PATH"),
+        "{e}"
+    );
+    let sh = spec(&["sh", "../mappers/ray_mapper.py"], "m.bt")
+        .check(&base, &[])
+        .unwrap();
+    let inputs = sh.inputs().unwrap();
+    assert!(inputs.contains(&script) && inputs.len() == 2, "{inputs:?}");
+}
+
+#[test]
+fn placeholders_become_the_runs_paths_and_numbers() {
+    let places = Placeholders {
+        scans: "/s/scans.graph".into(),
+        poses: "/s/poses.txt".into(),
+        plys: "/s".into(),
+        dir: "/w".into(),
+        resolution: 0.01,
+        max_range: 2.0,
+        seed: 7,
+    };
+    assert_eq!(
+        places.fill("{dir}/map_{seed}.bt {scans} {poses} {plys} {resolution} {max_range}"),
+        "/w/map_7.bt /s/scans.graph /s/poses.txt /s 0.01 2"
+    );
+}

@@ -1,0 +1,166 @@
+//! What a scan measured, as each method draws it: the measured range of
+//! every beam (raw, or pooled on the surfaces the beams share, docs/math.md
+//! §5.5), the point a map draws from it, the point the NEES checks, and the
+//! rays OctoMap's update inserts.
+
+use super::pooling::{pool_ranges, Pooled, PooledRange, Pooling};
+use super::scan::{BeamLayout, BeamStatus, MapperView, Measurement, Scan};
+use crate::geometry::{Point3, Vector3};
+use crate::uncertainty::{RangeModel, UncertainPoint};
+
+/// A beam's measured range if it hit.
+#[inline]
+fn hit_range(m: &Measurement) -> Option<f64> {
+    (m.status == BeamStatus::Hit).then_some(m.range)
+}
+
+/// What a scan measured along each beam (`None`: no hit): the raw range with the range model's σ, or with `beam_pooling`
+/// the range pooled on its grid's local plane or face (docs/math.md §5.5).
+/// The same for every method: compute it once per scan. [`surface_point`]
+/// is what a map draws from it, [`hit_point`] what the NEES checks. Fails
+/// when pooling needs a regular raster and two beams share a grid bin.
+pub fn measured_ranges(
+    view: &MapperView,
+    layout: &BeamLayout,
+    scan: &Scan,
+) -> Result<Vec<Pooled>, String> {
+    let ranges: Vec<Option<f64>> = scan.measurements.iter().map(hit_range).collect();
+    let pooling = view.settings.beam_pooling;
+    let pool = |columns: usize, directions: &[Vector3], ranges: &[Option<f64>]| {
+        pool_ranges(
+            pooling,
+            columns,
+            directions,
+            ranges,
+            |r| view.range.sigma(r),
+            view.range.angular_sigma,
+        )
+    };
+    if let [grid] = &layout.grids[..] {
+        if grid.members.is_none() || pooling == Pooling::Off {
+            return Ok(pool(grid.azimuth.count, &layout.directions, &ranges));
+        }
+    }
+    let raw = pool(1, &layout.directions, &ranges);
+    if pooling == Pooling::Off {
+        return Ok(raw);
+    }
+    // Each grid's beams laid into its raster of slots, pooled there.
+    let mut out = raw;
+    for grid in &layout.grids {
+        let (columns, rows) = (grid.azimuth.count, grid.elevation.count);
+        let mut slot_ranges = vec![None; columns * rows];
+        let mut slot_directions = vec![Vector3::zeros(); columns * rows];
+        let members = grid.slots(layout);
+        for member in &members {
+            // A slot's direction is set once it holds a beam.
+            if slot_directions[member.slot] != Vector3::zeros() {
+                return Err(format!(
+                    "beam pooling needs a regular raster, one point per angular bin: scan {} has \
+                     two points in one bin of {:.4} deg; give the scanner's angular step, or map \
+                     without beam pooling",
+                    scan.viewpoint,
+                    grid.azimuth.step.to_degrees()
+                ));
+            }
+            slot_directions[member.slot] = layout.directions[member.beam];
+            slot_ranges[member.slot] = ranges[member.beam];
+        }
+        let pooled = pool(columns, &slot_directions, &slot_ranges);
+        for member in &members {
+            out[member.beam] = pooled[member.slot];
+        }
+    }
+    Ok(out)
+}
+
+/// Where the surface crosses the nominal line of the beam along the unit
+/// camera-frame `d` that measured `p`, with the covariance a map draws its
+/// chord and free space from (docs/math.md §5.4, §5.5): σ along the beam is
+/// the raw range's or the fitted plane's prediction σ, without the slide of
+/// a turned beam along a slanted plane, which is where the beam hit and not
+/// where the surface meets the line the map draws.
+pub fn surface_point(range: &RangeModel, d: &Vector3, p: &PooledRange) -> UncertainPoint {
+    camera_point(range, d, p.range, p.sigma)
+}
+
+/// Where the beam along `d` that measured `p` hit the surface, with its
+/// covariance: a pooled range's holds the slide (docs/math.md §5.5). What
+/// the run's NEES checks against the true hit.
+pub fn hit_point(range: &RangeModel, d: &Vector3, p: &PooledRange) -> UncertainPoint {
+    match p.covariance(d, range.angular_sigma) {
+        Some(covariance) => UncertainPoint {
+            mean: d * p.range,
+            covariance,
+        },
+        None => surface_point(range, d, p),
+    }
+}
+
+/// A hit's measured point from its raw range (see [`measured_ranges`]).
+pub(crate) fn raw_point(view: &MapperView, m: &Measurement, d: &Vector3) -> Option<UncertainPoint> {
+    hit_range(m).map(|r| camera_point(view.range, d, r, view.range.sigma(r)))
+}
+
+/// The camera-frame point at range `r` along `d`, range noise `sigma`.
+fn camera_point(range: &RangeModel, d: &Vector3, r: f64, sigma: f64) -> UncertainPoint {
+    UncertainPoint {
+        mean: d * r,
+        covariance: range.point_covariance_with(d, r, sigma),
+    }
+}
+
+/// The nominal origin, measured end points and no-return directions of a
+/// scan, in the scene frame (what OctoMap's `insertPointCloud` is given: a
+/// point recorded beyond the maximum range is an end point the update
+/// truncates, as OctoMap's).
+pub fn ray_inputs(layout: &BeamLayout, scan: &Scan) -> (Point3, Vec<Point3>, Vec<Vector3>) {
+    let (mut hits, mut misses) = (Vec::new(), Vec::new());
+    let origin = ray_inputs_into(layout, scan, None, &mut hits, &mut misses);
+    (origin, hits, misses)
+}
+
+/// Where a scan's rays end for the ray update: with beam pooling, at its
+/// pooled [`measured_ranges`]; `None` without pooling (the raw hits, as
+/// OctoMap's).
+pub fn pooled_ray_ends(
+    view: &MapperView,
+    layout: &BeamLayout,
+    scan: &Scan,
+) -> Result<Option<Vec<Pooled>>, String> {
+    if view.settings.beam_pooling == Pooling::Off {
+        return Ok(None);
+    }
+    measured_ranges(view, layout, scan).map(Some)
+}
+
+/// [`ray_inputs`] into buffers of the caller's (reused from scan to scan:
+/// fresh ones cost a page fault every 4 KiB); with `points` (the scan's
+/// [`measured_ranges`], pooled), each hit ends at its measured range.
+pub fn ray_inputs_into(
+    layout: &BeamLayout,
+    scan: &Scan,
+    points: Option<&[Pooled]>,
+    hits: &mut Vec<Point3>,
+    misses: &mut Vec<Vector3>,
+) -> Point3 {
+    let pose = scan.chain.scene_from_camera();
+    hits.clear();
+    misses.clear();
+    for (k, (m, d)) in scan.measurements.iter().zip(&layout.directions).enumerate() {
+        match m.status {
+            BeamStatus::Hit => {
+                let local = points
+                    .and_then(|points| points[k].as_ref())
+                    .map_or_else(|| d * m.range, |p| d * p.range);
+                hits.push(pose * Point3::from(local));
+            }
+            BeamStatus::NoReturn if m.range.is_finite() => {
+                hits.push(pose * Point3::from(d * m.range));
+            }
+            BeamStatus::NoReturn => misses.push(pose.rotation * d),
+            _ => {}
+        }
+    }
+    Point3::from(pose.translation.vector)
+}
