@@ -72,7 +72,8 @@ pub struct Measurement {
 }
 
 /// One viewpoint's scan: all a mapper may see of it. The truth behind it
-/// is a separate [`ScanTruth`], which map building never receives.
+/// is kept by the simulator in a type of its own, which map building never
+/// receives (the mapping layer cannot import `sim`).
 #[derive(Clone, Debug)]
 pub struct Scan {
     /// Viewpoint index within the experiment.
