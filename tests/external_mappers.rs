@@ -183,8 +183,8 @@ fn a_failing_mapper_is_one_line_and_the_finished_runs_stay() {
     // Seed 1 maps; seed 2 fails as each case says.
     let cases = [
         (
-            "echo mapper blew up >&2; exit 3",
-            "the command failed",
+            "echo mapper blew up >&2; exit 1",
+            "the command failed (exit status: 1)",
             "mapper blew up",
         ),
         ("sleep 30", "after its timeout of 2 s", ""),
@@ -315,6 +315,8 @@ fn graph2tree_joins_the_sweep_and_a_killed_run_resumes_identically() {
             .any(|l| l.contains(",ray_update,octomap,f1,")),
         "{paired}"
     );
+    let summary = std::fs::read_to_string(whole.join("summary.csv")).unwrap();
+    assert!(summary.contains(",octomap,f1,"), "{summary}");
     assert!(std::fs::read_to_string(whole.join("report.html"))
         .unwrap()
         .contains("octomap"));
