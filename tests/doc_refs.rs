@@ -149,10 +149,70 @@ fn every_named_doc_file_exists() {
     );
 }
 
-/// `crate::<module>` references of each top-level module of src/.
-fn module_imports() -> BTreeMap<String, BTreeSet<String>> {
+/// The top-level modules of the crate a piece of library code names: every
+/// `crate::` path, inline or in a `use` (grouped ones too:
+/// `use crate::{geometry::Pose, sim::{scan, sensor}}` names `geometry` and
+/// `sim`), comments left out.
+fn crate_paths(text: &str) -> BTreeSet<String> {
+    let code: String = text
+        .lines()
+        .map(|line| match line.find("//") {
+            Some(at) => &line[..at],
+            None => line,
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let ident = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    let mut out = BTreeSet::new();
+    let mut rest = code.as_str();
+    while let Some(at) = rest.find("crate::") {
+        let before = rest[..at].chars().next_back();
+        rest = &rest[at + "crate::".len()..];
+        if before.is_some_and(|c| ident(c) || c == ':') {
+            continue;
+        }
+        let after = rest.trim_start();
+        if let Some(group) = after.strip_prefix('{') {
+            // The first segment of each item at the group's top level.
+            let (mut depth, mut item) = (0usize, String::new());
+            for c in group.chars() {
+                match c {
+                    '{' => depth += 1,
+                    '}' if depth == 0 => break,
+                    '}' => depth -= 1,
+                    ',' if depth == 0 => {
+                        out.extend(first_segment(&item));
+                        item.clear();
+                        continue;
+                    }
+                    _ => {}
+                }
+                if depth == 0 {
+                    item.push(c);
+                }
+            }
+            out.extend(first_segment(&item));
+        } else {
+            out.extend(first_segment(after));
+        }
+    }
+    out
+}
+
+/// The identifier a path starts with (`sim` of `sim::scan::Scan`).
+fn first_segment(path: &str) -> Option<String> {
+    let name: String = path
+        .trim_start()
+        .chars()
+        .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+        .collect();
+    (!name.is_empty() && name != "self").then_some(name)
+}
+
+/// The top-level modules of src/ (without `lib` and `main`).
+fn top_level_modules() -> Vec<String> {
     let src = Path::new(ROOT).join("src");
-    let modules: Vec<String> = std::fs::read_dir(&src)
+    std::fs::read_dir(&src)
         .unwrap()
         .flatten()
         .filter_map(|e| {
@@ -162,7 +222,14 @@ fn module_imports() -> BTreeMap<String, BTreeSet<String>> {
         })
         .collect::<BTreeSet<_>>()
         .into_iter()
-        .collect();
+        .collect()
+}
+
+/// The top-level modules each top-level module of src/ names, outside test
+/// code (`#[cfg(test)]` onward, `tests.rs`, `tests/` folders).
+fn module_imports() -> BTreeMap<String, BTreeSet<String>> {
+    let src = Path::new(ROOT).join("src");
+    let modules = top_level_modules();
     let mut graph = BTreeMap::new();
     for module in &modules {
         let mut paths = Vec::new();
@@ -181,15 +248,92 @@ fn module_imports() -> BTreeMap<String, BTreeSet<String>> {
             {
                 continue;
             }
-            for other in &modules {
-                if other != module && library.contains(&format!("crate::{other}")) {
-                    uses.insert(other.clone());
-                }
-            }
+            uses.extend(
+                crate_paths(library)
+                    .into_iter()
+                    .filter(|m| m != module && modules.contains(m)),
+            );
         }
         graph.insert(module.clone(), uses);
     }
     graph
+}
+
+/// The table of docs/architecture.md: each module and what it may import
+/// (`- **`sim`** (error, geometry, ...)`; "nothing", "everything above",
+/// "everything").
+fn allowed_imports(text: &str) -> BTreeMap<String, BTreeSet<String>> {
+    let mut table: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let mut above: Vec<String> = Vec::new();
+    for line in text.lines() {
+        let Some(rest) = line.strip_prefix("- **`") else {
+            continue;
+        };
+        let Some((module, rest)) = rest.split_once("`** (") else {
+            continue;
+        };
+        let Some((list, _)) = rest.split_once(')') else {
+            continue;
+        };
+        let allowed: BTreeSet<String> = match list.trim() {
+            "nothing" | "imports nothing" => BTreeSet::new(),
+            "everything above" => above.iter().cloned().collect(),
+            "everything" => top_level_modules().into_iter().collect(),
+            list => list.split(',').map(|m| m.trim().to_string()).collect(),
+        };
+        table.insert(module.to_string(), allowed);
+        above.push(module.to_string());
+    }
+    table
+}
+
+/// Every import of `graph` that `table` does not allow, as `a -> b`.
+fn forbidden_imports(
+    graph: &BTreeMap<String, BTreeSet<String>>,
+    table: &BTreeMap<String, BTreeSet<String>>,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    for (module, uses) in graph {
+        match table.get(module) {
+            None => out.push(format!("{module} is not in docs/architecture.md's table")),
+            Some(allowed) => out.extend(
+                uses.iter()
+                    .filter(|u| !allowed.contains(*u))
+                    .map(|u| format!("{module} -> {u}")),
+            ),
+        }
+    }
+    out
+}
+
+#[test]
+fn every_import_is_an_arrow_of_the_architecture_table() {
+    let text = std::fs::read_to_string(Path::new(ROOT).join("docs/architecture.md")).unwrap();
+    let table = allowed_imports(&text);
+    assert!(table["mapping"].contains("geometry") && !table["mapping"].contains("sim"));
+    let graph = module_imports();
+    let forbidden = forbidden_imports(&graph, &table);
+    assert!(
+        forbidden.is_empty(),
+        "imports docs/architecture.md does not allow: {forbidden:?}"
+    );
+    // The check sees what a substring search would miss: a grouped import,
+    // over lines, of a module the table forbids.
+    let sneaky = "use crate::{\n    geometry::Pose,\n    sim::{scan::Scan, sensor},\n};\n\
+                  fn f() -> crate::eval::Scores { todo!() } // crate::cli in a comment";
+    let mut with_sneaky = graph.clone();
+    with_sneaky
+        .get_mut("mapping")
+        .unwrap()
+        .extend(crate_paths(sneaky));
+    assert_eq!(
+        crate_paths(sneaky),
+        ["eval", "geometry", "sim"].map(String::from).into()
+    );
+    assert_eq!(
+        forbidden_imports(&with_sneaky, &table),
+        ["mapping -> eval", "mapping -> sim"]
+    );
 }
 
 #[test]
