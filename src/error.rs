@@ -17,14 +17,21 @@ pub enum Error {
     /// Bad input: the file (or `-` for the command line) and a message that says
     /// what is wrong and, where it can, what to do.
     #[error("{}: {message}", path.display())]
-    Input { path: PathBuf, message: String },
+    Input {
+        /// The file at fault (`-`: the command line).
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
     /// Bad command-line usage.
     #[error("{0}")]
     Usage(String),
     /// Reading or writing a file failed.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The file read or written.
         path: PathBuf,
+        /// What the system said.
         #[source]
         source: std::io::Error,
     },

@@ -314,7 +314,9 @@ fn write_report_with_slice(
     report::write_report(out, experiment, study, inputs, &charts)
 }
 
-/// `run.toml`: which experiment, inputs, version and shard produced a folder.
+/// Writes `run.toml`: the experiment, the input fingerprint and each
+/// input's hash, sigmap's version and the shard (serde, so any name is
+/// valid TOML).
 fn write_manifest(
     out: &Path,
     experiment: &Experiment,
@@ -322,29 +324,28 @@ fn write_manifest(
     shard: usize,
     shards: usize,
 ) -> Result<()> {
-    let mut text = format!(
-        "# written by sigmap run; `sigmap run` and `sigmap merge` check it\nexperiment = {}\nfingerprint = \"{}\"\nversion = \"{}\"\nshard = \"{shard}/{shards}\"\n\n[inputs]\n",
-        toml::Value::String(experiment.name.clone()),
-        inputs.fingerprint,
-        env!("CARGO_PKG_VERSION")
-    );
-    for (path, hash) in &inputs.files {
-        text.push_str(&format!(
-            "{} = \"{hash}\"\n",
-            toml::Value::String(path.clone())
-        ));
-    }
+    let manifest = Manifest {
+        experiment: experiment.name.clone(),
+        fingerprint: inputs.fingerprint.clone(),
+        version: env!("CARGO_PKG_VERSION").into(),
+        shard: format!("{shard}/{shards}"),
+        inputs: inputs.files.iter().cloned().collect(),
+    };
+    let body = toml::to_string(&manifest)
+        .map_err(|e| Error::CheckFailed(format!("run.toml: {e}")))?;
+    let text = format!("# written by sigmap run; `sigmap run` and `sigmap merge` check it\n{body}");
     crate::files::write_file(&out.join("run.toml"), text.as_bytes())
 }
 
-#[derive(serde::Deserialize)]
+/// `run.toml`: what a results folder was made from.
+#[derive(serde::Deserialize, serde::Serialize)]
 struct Manifest {
     experiment: String,
     fingerprint: String,
-    #[serde(default)]
-    inputs: std::collections::BTreeMap<String, String>,
     version: String,
     shard: String,
+    #[serde(default)]
+    inputs: std::collections::BTreeMap<String, String>,
 }
 
 /// Joins the folders of `sigmap run --shard i/n` of the experiment file at
@@ -448,4 +449,29 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
     }
     write_report_with_slice(&out, &experiment, &study, &expected, charts)?;
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_toml_stays_valid_whatever_the_names() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut experiment = Experiment::load(Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/experiments/quickstart.toml"
+        )))
+        .unwrap();
+        experiment.name = "a \"quoted\" name\nover two lines".into();
+        let inputs = Inputs {
+            fingerprint: "0123".into(),
+            files: vec![("dir/with \"quote\".toml".into(), "beef".into())],
+        };
+        write_manifest(dir.path(), &experiment, &inputs, 2, 3).unwrap();
+        let manifest: Manifest = crate::error::read_toml(&dir.path().join("run.toml")).unwrap();
+        assert_eq!(manifest.experiment, experiment.name);
+        assert_eq!(manifest.shard, "2/3");
+        assert_eq!(manifest.inputs["dir/with \"quote\".toml"], "beef");
+    }
 }

@@ -97,48 +97,47 @@ fn pose_line(out: &mut String, name: &str, iso: &Isometry3) {
     );
 }
 
+/// `scan.toml`: what a scan set was simulated from (serde, so any name is
+/// valid TOML).
+#[derive(serde::Serialize)]
+struct ScanManifest<'a> {
+    experiment: &'a str,
+    seed: u64,
+    scene: &'a str,
+    robot: &'a str,
+    error_profile: &'a str,
+    viewpoints: usize,
+    beams_per_viewpoint: usize,
+    rows: usize,
+    columns: usize,
+    min_range: f64,
+    max_range: f64,
+    range: &'a crate::uncertainty::RangeModel,
+}
+
 /// Writes every file of a simulated run into `dir` (which must exist).
 pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> Result<()> {
     let truth_dir = dir.join("truth");
     std::fs::create_dir_all(&truth_dir).map_err(|e| Error::io(&truth_dir, e))?;
     let scanner = &experiment.scanner;
-    let mut manifest = String::new();
-    let _ = writeln!(
-        manifest,
-        "# sigmap {} scan set; see docs/files.md, \"Scan files\".",
-        env!("CARGO_PKG_VERSION")
-    );
-    let _ = writeln!(
-        manifest,
-        "experiment = \"{}\"\nseed = {}",
-        experiment.name, run.seed
-    );
-    let _ = writeln!(
-        manifest,
-        "scene = \"{}\"\nrobot = \"{}\"\nerror_profile = \"{}\"",
-        experiment.scene.name, experiment.robot.name, experiment.profile.name
-    );
-    let _ = writeln!(
-        manifest,
-        "viewpoints = {}\nbeams_per_viewpoint = {}",
-        run.scans.len(),
-        scanner.directions().len()
-    );
-    let _ = writeln!(
-        manifest,
-        "rows = {}\ncolumns = {}",
-        scanner.rows, scanner.columns
-    );
-    let _ = writeln!(
-        manifest,
-        "min_range = {:?}\nmax_range = {:?}",
-        scanner.min_range, scanner.max_range
-    );
-    let range = &experiment.profile.range;
-    let _ = writeln!(
-        manifest,
-        "[range]\nsigma0 = {:?}\nk = {:?}\nangular_sigma = {:?}\ndropout = {:?}",
-        range.sigma0, range.k, range.angular_sigma, range.dropout
+    let manifest = ScanManifest {
+        experiment: &experiment.name,
+        seed: run.seed,
+        scene: &experiment.scene.name,
+        robot: &experiment.robot.name,
+        error_profile: &experiment.profile.name,
+        viewpoints: run.scans.len(),
+        beams_per_viewpoint: scanner.directions().len(),
+        rows: scanner.rows,
+        columns: scanner.columns,
+        min_range: scanner.min_range,
+        max_range: scanner.max_range,
+        range: &experiment.profile.range,
+    };
+    let manifest = format!(
+        "# sigmap {} scan set; see docs/files.md, \"Scan files\".\n{}",
+        env!("CARGO_PKG_VERSION"),
+        toml::to_string(&manifest).map_err(|e| Error::CheckFailed(format!("scan.toml: {e}")))?
     );
     put(&dir.join("scan.toml"), &manifest)?;
 

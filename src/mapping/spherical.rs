@@ -83,9 +83,17 @@ pub struct GridLayout {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum BeamEnd {
     /// A measured point with its propagated covariance.
-    Hit { point: Vector3, covariance: Matrix3 },
-    /// No return: the beam's unit direction; free space up to the maximum range.
-    Miss { direction: Vector3 },
+    Hit {
+        /// The propagated mean, scene frame.
+        point: Vector3,
+        /// Its propagated covariance.
+        covariance: Matrix3,
+    },
+    /// No return: free space up to the maximum range.
+    Miss {
+        /// The beam's unit direction, scene frame.
+        direction: Vector3,
+    },
 }
 
 /// `(r, azimuth, elevation)` of a grid-frame vector.

@@ -14,7 +14,9 @@ pub enum IkTarget {
     /// Tip origin at `position` with its +z axis along `boresight`; the roll
     /// about the boresight is free (5 constraints).
     LookAt {
+        /// Where the tip's origin must be.
         position: Vector3,
+        /// Where its +z axis must point.
         boresight: Unit<Vector3>,
     },
 }

@@ -14,16 +14,25 @@ pub enum JointMotion {
     Fixed,
     /// Rotation about `axis` (unit, joint frame) within `[lower, upper]` radians.
     Revolute {
+        /// The rotation axis (unit, joint frame).
         axis: Unit<Vector3>,
+        /// Lowest angle (rad).
         lower: f64,
+        /// Highest angle (rad).
         upper: f64,
     },
     /// Unlimited rotation about `axis`.
-    Continuous { axis: Unit<Vector3> },
+    Continuous {
+        /// The rotation axis (unit, joint frame).
+        axis: Unit<Vector3>,
+    },
     /// Translation along `axis` within `[lower, upper]` metres.
     Prismatic {
+        /// The direction of travel (unit, joint frame).
         axis: Unit<Vector3>,
+        /// Lowest position (m).
         lower: f64,
+        /// Highest position (m).
         upper: f64,
     },
 }

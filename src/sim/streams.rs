@@ -21,7 +21,12 @@ pub enum Stream {
     /// Errors of one viewpoint: T_rw (or its joint errors).
     Viewpoint(u32),
     /// Per-beam errors of one block of beams of one viewpoint.
-    Beams { viewpoint: u32, block: u32 },
+    Beams {
+        /// The viewpoint's index.
+        viewpoint: u32,
+        /// The block's index within the viewpoint's beams.
+        block: u32,
+    },
     /// The sub-voxel offset of the map's grid (evaluation, not an error).
     GridOffset,
 }

@@ -4,11 +4,11 @@
 //! calibrated with it.
 
 use crate::geometry::{Matrix3, Vector3};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// Gaussian range error `σ(r) = σ0 + k r`, optional angular jitter of the true
 /// beam direction, optional dropout.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct RangeModel {
     /// Constant part of the range standard deviation (m).

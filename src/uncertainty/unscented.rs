@@ -27,7 +27,14 @@ pub enum SigmaSet {
     Paper,
     /// Wan–van der Merwe scaled set: `λ = α²(n + κ) − n`, spread `√(n + λ)`,
     /// centre weights `λ/(n+λ)` (mean) and `λ/(n+λ) + 1 − α² + β` (covariance).
-    Scaled { alpha: f64, beta: f64, kappa: f64 },
+    Scaled {
+        /// Spread α of the points about the mean.
+        alpha: f64,
+        /// Prior-knowledge weight β (2 for a Gaussian).
+        beta: f64,
+        /// Secondary scaling κ.
+        kappa: f64,
+    },
 }
 
 /// Weights and spread of a set for `n` uncertain dimensions.

@@ -40,6 +40,7 @@ impl Clamp {
         max: f32::INFINITY,
     };
 
+    /// `v` clamped to `[min, max]`.
     #[inline]
     pub fn apply(&self, v: f32) -> f32 {
         v.clamp(self.min, self.max)
