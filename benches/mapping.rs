@@ -50,7 +50,7 @@ fn bench(c: &mut Criterion) {
                             .expect("the quickstart maps"),
                     )
                 })
-            })
+            });
         });
     }
     group.finish();
@@ -115,8 +115,7 @@ fn bench(c: &mut Criterion) {
     // the insertion: its cost beside the insertion it feeds.
     let insertion = seconds(Method::Unscented);
     println!(
-        "\nbeam pooling of the same scans (ratio: its time / the unscented insertion without it, {:.3} s, one core):",
-        insertion
+        "\nbeam pooling of the same scans (ratio: its time / the unscented insertion without it, {insertion:.3} s, one core):"
     );
     for pooling in [Pooling::Faces, Pooling::Windows] {
         experiment.map.beam_pooling = pooling;

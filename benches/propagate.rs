@@ -74,16 +74,16 @@ fn bench(c: &mut Criterion) {
         .warm_up_time(Duration::from_millis(500));
     group.bench_function("blind", |b| b.iter(|| blind.propagate(black_box(&point))));
     group.bench_function("jacobian_precomputed", |b| {
-        b.iter(|| jacobian.propagate(black_box(&point)))
+        b.iter(|| jacobian.propagate(black_box(&point)));
     });
     group.bench_function("jacobian_naive", |b| {
-        b.iter(|| jacobian_naive(&chain, black_box(&point)))
+        b.iter(|| jacobian_naive(&chain, black_box(&point)));
     });
     group.bench_function("unscented_precomputed", |b| {
-        b.iter(|| unscented.propagate(black_box(&point)))
+        b.iter(|| unscented.propagate(black_box(&point)));
     });
     group.bench_function("unscented_naive", |b| {
-        b.iter(|| unscented_naive(&chain, black_box(&point), SigmaSet::Paper))
+        b.iter(|| unscented_naive(&chain, black_box(&point), SigmaSet::Paper));
     });
     group.finish();
 

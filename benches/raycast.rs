@@ -86,10 +86,10 @@ fn bench(c: &mut Criterion) {
         .sample_size(20)
         .measurement_time(Duration::from_secs(4));
     group.bench_function("bvh_sequential_1_core", |b| {
-        b.iter(|| black_box(sequential(&experiment, &rays)))
+        b.iter(|| black_box(sequential(&experiment, &rays)));
     });
     group.bench_function("simulator_rayon_all_cores", |b| {
-        b.iter(|| black_box(simulator(&experiment, &streams)))
+        b.iter(|| black_box(simulator(&experiment, &streams)));
     });
     group.finish();
 

@@ -60,9 +60,9 @@ fn draw(csv_path: &Path, svg_path: &Path) -> Result<(), String> {
         measures
             .iter()
             .map(|measure| Series {
-                name: measure.to_string(),
+                name: (*measure).clone(),
                 points: table
-                    .get(&(axis.to_string(), measure.to_string()))
+                    .get(&(axis.to_string(), (*measure).clone()))
                     .map_or(Vec::new(), |points| {
                         points.iter().map(|p| (p.0, pick(p))).collect()
                     }),

@@ -19,8 +19,7 @@ pub const MARKER: &str = ".sigmap-output";
 fn sibling(path: &Path, tag: &str) -> PathBuf {
     let name = path
         .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
+        .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
     parent(path).join(format!(".{name}.{tag}-{}", std::process::id()))
 }
 

@@ -351,7 +351,10 @@ fn top_level_modules_import_each_other_without_a_cycle() {
             Some(2) => return None,
             Some(1) => {
                 let start = path.iter().position(|n| *n == node).unwrap();
-                let mut cycle: Vec<String> = path[start..].iter().map(|s| s.to_string()).collect();
+                let mut cycle: Vec<String> = path[start..]
+                    .iter()
+                    .map(std::string::ToString::to_string)
+                    .collect();
                 cycle.push(node.to_string());
                 return Some(cycle);
             }

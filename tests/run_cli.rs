@@ -439,7 +439,7 @@ fn a_resume_refuses_results_of_other_inputs() {
             out.to_str().unwrap().into(),
             "-q".into(),
         ];
-        a.extend(extra.iter().map(|s| s.to_string()));
+        a.extend(extra.iter().map(std::string::ToString::to_string));
         a
     };
     let call = |extra: &[&'static str]| {

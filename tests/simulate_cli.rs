@@ -247,7 +247,7 @@ fn ply_reads_in_an_independent_reader() {
         .args(["-c", "import plyfile"])
         .output();
     assert!(
-        probe.map(|o| o.status.success()).unwrap_or(false),
+        probe.is_ok_and(|o| o.status.success()),
         "python3 with plyfile not found (pip install plyfile; `bash .ci/run` does)"
     );
     let tmp = tempfile::tempdir().unwrap();

@@ -14,8 +14,7 @@ fn require_slurm() {
     let present = Command::new("sbatch")
         .arg("--version")
         .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
+        .is_ok_and(|o| o.status.success());
     assert!(
         present,
         "no `sbatch` on PATH; start a cluster with `bash .ci/slurm.sh start`"

@@ -16,7 +16,11 @@ pub(crate) fn submit(args: SubmitArgs) -> Result<()> {
     )?;
     match &done.array_job {
         Some(id) => {
-            let list: Vec<String> = done.shards.iter().map(|k| k.to_string()).collect();
+            let list: Vec<String> = done
+                .shards
+                .iter()
+                .map(std::string::ToString::to_string)
+                .collect();
             println!(
                 "submitted shards {} of {} as job array {id}",
                 list.join(","),

@@ -135,7 +135,7 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
     let start = Instant::now();
     let tree = with_threads(args.run.threads, || {
         map_recorded(&nodes, &profile, &settings, &options, |k| {
-            bar.set_position(k as u64)
+            bar.set_position(k as u64);
         })
     })??;
     bar.finish_and_clear();

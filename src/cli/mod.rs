@@ -406,7 +406,7 @@ fn parse_point(text: &str) -> std::result::Result<[f64; 3], String> {
 
 /// Runs `f` on a rayon pool of `threads` workers (0: one per core).
 pub(crate) fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Result<T> {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
     if threads > 8 * cores.max(8) {
         return Err(Error::Usage(format!(
             "--threads {threads}: this machine has {cores} cores; use at most {} (0: one per core)",

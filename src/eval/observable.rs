@@ -31,7 +31,7 @@ pub fn observable_along(
     for ray in rays {
         keys.clear();
         ray_keys(&grid, &ray.origin, &ray.end, &mut keys);
-        cells.extend(keys.iter().map(|k| k.morton()));
+        cells.extend(keys.iter().map(crate::mapping::Key::morton));
         if ray.hit {
             if let Some(k) = grid.key(&ray.end) {
                 cells.insert(k.morton());

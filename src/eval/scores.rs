@@ -85,12 +85,12 @@ pub fn score_map(map: &Octree, truth: &Octree, observable: &FxHashSet<u64>) -> M
             (true, Call::Occupied) => tp += 1,
             (true, Call::Free) => {
                 ff += 1;
-                fn_ += 1
+                fn_ += 1;
             }
             (true, Call::Unknown) => fn_ += 1,
             (false, Call::Occupied) => {
                 fp += 1;
-                fo += 1
+                fo += 1;
             }
             _ => {}
         }

@@ -331,8 +331,8 @@ fn write_manifest(
         shard: format!("{shard}/{shards}"),
         inputs: inputs.files.iter().cloned().collect(),
     };
-    let body = toml::to_string(&manifest)
-        .map_err(|e| Error::CheckFailed(format!("run.toml: {e}")))?;
+    let body =
+        toml::to_string(&manifest).map_err(|e| Error::CheckFailed(format!("run.toml: {e}")))?;
     let text = format!("# written by sigmap run; `sigmap run` and `sigmap merge` check it\n{body}");
     crate::files::write_file(&out.join("run.toml"), text.as_bytes())
 }

@@ -251,7 +251,7 @@ pub fn submit(
     let mut dependency = Vec::new();
     let mut array_job = None;
     if !todo.is_empty() {
-        let list: Vec<String> = todo.iter().map(|k| k.to_string()).collect();
+        let list: Vec<String> = todo.iter().map(std::string::ToString::to_string).collect();
         let mut array_args = vec![format!("--array={}", list.join(","))];
         array_args.extend(sbatch_args.iter().cloned());
         let id = sbatch(&array_args, &array)?;

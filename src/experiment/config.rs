@@ -219,7 +219,11 @@ impl Experiment {
             if file.sweeps[..i].iter().any(|a| a.field == axis.field) {
                 return Err(bad(format!("[[sweep]] '{}' is swept twice", axis.field)));
             }
-            let labels: Vec<String> = axis.values.iter().map(|v| v.to_string()).collect();
+            let labels: Vec<String> = axis
+                .values
+                .iter()
+                .map(std::string::ToString::to_string)
+                .collect();
             if let Some(label) = first_repeat(&labels) {
                 return Err(bad(format!(
                     "[[sweep]] '{}' lists the value {label} more than once",

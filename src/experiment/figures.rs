@@ -42,7 +42,7 @@ pub fn write_opdf_figures(out: &Path, delta: f64, r: f64) -> Result<()> {
     write_folder(out, |dir| {
         let mut csv = String::from("figure,curve,lambda,p\n");
         for (figure, series) in [("fig1", &fig1), ("fig6", &fig6)] {
-            for s in series.iter() {
+            for s in series {
                 for (l, p) in &s.points {
                     let _ = writeln!(csv, "{figure},{},{l:?},{p:?}", s.name);
                 }

@@ -412,7 +412,7 @@ impl Serialize for RunRow {
         for (m, v) in METRICS.iter().zip(&self.values) {
             match m.kind {
                 Kind::Count if v.is_finite() && *v >= 0.0 => {
-                    s.serialize_field(m.name, &(*v as u64))?
+                    s.serialize_field(m.name, &(*v as u64))?;
                 }
                 _ => s.serialize_field(m.name, v)?,
             }

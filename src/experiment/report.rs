@@ -97,7 +97,11 @@ pub fn render(
         escape(&experiment.description)
     );
     let seeds: Vec<String> = experiment.seeds.iter().map(u64::to_string).collect();
-    let methods: Vec<&str> = experiment.methods.iter().map(|m| m.as_str()).collect();
+    let methods: Vec<&str> = experiment
+        .methods
+        .iter()
+        .map(super::run_method::RunMethod::as_str)
+        .collect();
     for (term, value) in [
         ("sigmap", env!("CARGO_PKG_VERSION").to_string()),
         ("input fingerprint", inputs.fingerprint.clone()),

@@ -44,7 +44,11 @@ pub fn prepare_and_insert<T: Send>(
     });
     // Only the thread holding `inserting` locks this: never contended.
     let inserter = Mutex::new(insert);
-    let lock = || queue.lock().unwrap_or_else(|e| e.into_inner());
+    let lock = || {
+        queue
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    };
     let work = || loop {
         // Take up the next scan, unless the window is full: then the scans
         // in hand are enough, and this thread helps with their parallel
@@ -73,7 +77,9 @@ pub fn prepare_and_insert<T: Send>(
                 break;
             };
             drop(q);
-            (inserter.lock().unwrap_or_else(|e| e.into_inner()))(prepared);
+            (inserter
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner))(prepared);
             q = lock();
             q.next_inserted += 1;
         }
@@ -124,7 +130,7 @@ mod tests {
                             held.fetch_sub(1, Relaxed);
                             order.push(i);
                         },
-                    )
+                    );
                 });
                 assert_eq!(order, (0..40).collect::<Vec<_>>(), "{threads} threads");
                 assert!(
@@ -160,7 +166,7 @@ mod tests {
                     running.fetch_sub(1, Relaxed);
                 },
                 |()| {},
-            )
+            );
         });
         assert_eq!(most.load(Relaxed), 2);
     }

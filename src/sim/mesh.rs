@@ -23,7 +23,7 @@ impl Mesh {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase());
+            .map(str::to_ascii_lowercase);
         if !path.exists() {
             return Err(Error::input(path, "mesh file not found"));
         }

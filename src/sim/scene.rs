@@ -403,17 +403,14 @@ impl Scene {
             &o.pose,
             o.shape.as_ref(),
         )
-        .map(|r| r.intersecting)
-        // Unsupported pairs do not occur for our shapes; count them as touching.
-        .unwrap_or(true)
+        .map_or(true, |r| r.intersecting)
     }
 }
 
 /// A file's stem as a name.
 pub(crate) fn stem(path: &Path) -> String {
     path.file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "unnamed".into())
+        .map_or_else(|| "unnamed".into(), |s| s.to_string_lossy().into_owned())
 }
 
 mod cylinder;

@@ -137,10 +137,10 @@ struct PointSpec {
     covariance: Option<Vec<Vec<f64>>>,
 }
 
-fn spec(sigma: &Option<Vec<f64>>, covariance: &Option<Vec<Vec<f64>>>) -> CovarianceSpec {
+fn spec(sigma: Option<&Vec<f64>>, covariance: Option<&Vec<Vec<f64>>>) -> CovarianceSpec {
     CovarianceSpec {
-        sigma: sigma.clone(),
-        covariance: covariance.clone(),
+        sigma: sigma.cloned(),
+        covariance: covariance.cloned(),
     }
 }
 
@@ -161,7 +161,7 @@ pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainP
                 "[[transform]] '{name}': xyz/rpy must be finite"
             )));
         }
-        let covariance = spec(&t.sigma, &t.covariance)
+        let covariance = spec(t.sigma.as_ref(), t.covariance.as_ref())
             .to_matrix::<6>(&format!("[[transform]] '{name}'"))
             .map_err(bad)?;
         links.push(ChainLink {
@@ -178,7 +178,7 @@ pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainP
             }
             Some(UncertainPoint {
                 mean: Vector3::from(p.xyz),
-                covariance: spec(&p.sigma, &p.covariance)
+                covariance: spec(p.sigma.as_ref(), p.covariance.as_ref())
                     .to_matrix::<3>("[point]")
                     .map_err(bad)?,
             })

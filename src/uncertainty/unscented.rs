@@ -95,7 +95,7 @@ fn pose_directions(covariance: &crate::geometry::Matrix6) -> Vec<crate::geometry
     let scale = root.amax();
     root.column_iter()
         .filter(|c| scale > 0.0 && c.amax() > 1e-12 * scale)
-        .map(|c| c.into_owned())
+        .map(nalgebra::Matrix::into_owned)
         .collect()
 }
 

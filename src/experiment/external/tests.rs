@@ -3,7 +3,10 @@ use super::*;
 fn spec(command: &[&str], map: &str) -> MapperSpec {
     MapperSpec {
         name: "mine".into(),
-        command: command.iter().map(|s| s.to_string()).collect(),
+        command: command
+            .iter()
+            .map(std::string::ToString::to_string)
+            .collect(),
         map: map.into(),
         timeout_s: None,
     }

@@ -166,7 +166,7 @@ fn recorded_scans_map_as_the_simulated_scans_do() {
         angular_step: Some(0.5f64.to_radians()),
     };
     map_recorded(&nodes, &profile, &experiment.map, &options, |k| {
-        seen.lock().unwrap().push(k)
+        seen.lock().unwrap().push(k);
     })
     .unwrap();
     assert_eq!(seen.into_inner().unwrap(), vec![1, 2]);

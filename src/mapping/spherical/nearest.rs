@@ -52,7 +52,7 @@ impl LocalGrid {
                 s.bins = 1;
                 let nearest = beams
                     .iter()
-                    .map(|b| b.surface())
+                    .map(super::super::chord::Beam::surface)
                     .reduce(|best, b| Surface {
                         range: if b.range < best.range {
                             b.range

@@ -313,7 +313,7 @@ fn ball_bins_are_a_superset() {
                     assert!(b.range.0 <= r + 1e-12 && r <= b.range.1 + 1e-12);
                 }
                 (Some(b), None) => {
-                    assert!(b.outside, "a point of the ball is outside but not flagged")
+                    assert!(b.outside, "a point of the ball is outside but not flagged");
                 }
             }
         }
