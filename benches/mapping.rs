@@ -12,7 +12,7 @@
 //! `bash benches/octomap/compare.sh`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use sigmap::experiment::{simulate, Experiment};
+use sigmap::experiment::{simulate, Experiment, Overrides};
 use sigmap::geometry::Vector3;
 use sigmap::mapping::measured::measured_ranges;
 use sigmap::mapping::pooling::Pooling;
@@ -24,11 +24,11 @@ use std::time::{Duration, Instant};
 const RESOLUTION: f64 = 0.02;
 
 fn bench(c: &mut Criterion) {
-    let mut experiment = Experiment::load(Path::new(concat!(
+    let path = Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/experiments/quickstart.toml"
-    )))
-    .expect("quickstart");
+    ));
+    let experiment = Experiment::load(path).expect("quickstart");
     let run = simulate(&experiment, 1, |_| {}).expect("simulate");
     let view = experiment.mapper_view();
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
@@ -118,13 +118,17 @@ fn bench(c: &mut Criterion) {
         "\nbeam pooling of the same scans (ratio: its time / the unscented insertion without it, {insertion:.3} s, one core):"
     );
     for pooling in [Pooling::Faces, Pooling::Windows] {
-        experiment.map.beam_pooling = pooling;
+        let overrides = Overrides {
+            beam_pooling: Some(pooling),
+            ..Overrides::default()
+        };
+        let experiment = Experiment::load_with(path, &[], &overrides).expect("quickstart");
         let view = experiment.mapper_view();
         let pool_scans = |pool: &rayon::ThreadPool| {
             pool.install(|| {
                 mean_seconds(|| {
                     for scan in &run.scans {
-                        black_box(measured_ranges(&view, &experiment.scanner.layout, scan).ok());
+                        black_box(measured_ranges(&view, &experiment.scanner().layout, scan).ok());
                     }
                 })
             })

@@ -24,13 +24,13 @@ fn load() -> Experiment {
 
 fn rays(experiment: &Experiment) -> Vec<(Point3, Vector3)> {
     experiment
-        .viewpoints
+        .viewpoints()
         .iter()
         .flat_map(|v| {
             let pose = experiment.nominal_scene_from_camera(&v.joints);
             let origin = Point3::from(pose.translation.vector);
             experiment
-                .scanner
+                .scanner()
                 .directions()
                 .iter()
                 .map(move |d| (origin, pose.rotation * d))
@@ -39,23 +39,23 @@ fn rays(experiment: &Experiment) -> Vec<(Point3, Vector3)> {
 }
 
 fn sequential(experiment: &Experiment, rays: &[(Point3, Vector3)]) -> usize {
-    let max = experiment.scanner.max_range;
+    let max = experiment.scanner().max_range;
     rays.iter()
-        .filter(|(o, d)| experiment.scene.cast_ray(o, d, max).is_some())
+        .filter(|(o, d)| experiment.scene().cast_ray(o, d, max).is_some())
         .count()
 }
 
 fn simulator(experiment: &Experiment, streams: &Streams) -> usize {
     experiment
-        .viewpoints
+        .viewpoints()
         .iter()
         .enumerate()
         .map(|(i, v)| {
             let pose = experiment.nominal_scene_from_camera(&v.joints);
             let (m, _) = cast_beams(
-                &experiment.scene,
-                &experiment.scanner,
-                &experiment.profile.range,
+                experiment.scene(),
+                experiment.scanner(),
+                &experiment.profile().range,
                 &pose,
                 streams,
                 i as u32,
@@ -99,8 +99,8 @@ fn bench(c: &mut Criterion) {
     println!(
         "\nraycast on '{}' ({} triangles, {} rays/pass):\n  baseline, BVH cast on 1 core:      {:6.2} M rays/s\n  \
          simulator on {threads} threads:           {:6.2} M rays/s  (ratio {:.2}x; target >= 3.5 M rays/s on 2 cores: {})",
-        experiment.scene.name,
-        experiment.scene.triangle_count(),
+        experiment.scene().name,
+        experiment.scene().triangle_count(),
         rays.len(),
         baseline / 1e6,
         simulated / 1e6,

@@ -64,10 +64,10 @@ fn main() {
 /// Per threshold, the sums over seeds of precision, false-free rate and F1.
 fn ceiling(experiment: &Experiment, seeds: u64, draws: usize) -> sigmap::Result<Vec<[f64; 3]>> {
     let mut sums = vec![[0.0; 3]; THRESHOLDS.len()];
-    let nominal = experiment.world_from_scene.to_isometry();
+    let nominal = experiment.world_from_scene().to_isometry();
     let registration = UncertainPose {
-        mean: experiment.world_from_scene,
-        covariance: experiment.profile.world_from_scene,
+        mean: experiment.world_from_scene(),
+        covariance: experiment.profile().world_from_scene,
     };
     for seed in 1..=seeds {
         let run = simulate(experiment, seed, |_| {})?;
@@ -81,8 +81,8 @@ fn ceiling(experiment: &Experiment, seeds: u64, draws: usize) -> sigmap::Result<
             .map(|_| {
                 let error = nominal.inverse() * draw_pose(&registration, &mut rng).to_isometry();
                 voxelise_in(
-                    &experiment.scene,
-                    experiment.resolution,
+                    experiment.scene(),
+                    experiment.resolution(),
                     &(registered * error),
                 )
             })

@@ -9,6 +9,8 @@
 //! ([2.670, 3.349]); blind, which ignores the pose errors, must fall far
 //! above it (over-confident).
 
+mod common;
+
 use sigmap::experiment::{simulate, Experiment};
 use sigmap::mapping::scan::BeamStatus;
 use sigmap::uncertainty::consistency::ConsistencyReport;
@@ -16,17 +18,18 @@ use sigmap::uncertainty::{
     BlindPropagator, Gaussian3, JacobianPropagator, Propagator, SigmaSet, UncertainChain,
     UncertainPoint, UnscentedPropagator,
 };
-use std::path::Path;
 
 #[test]
 fn propagated_covariances_are_consistent_with_the_simulated_truth() {
-    let mut experiment = Experiment::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/experiments/quickstart.toml"
-    )))
-    .unwrap();
-    experiment.viewpoints.truncate(1);
-    let centre = experiment.scanner.directions().len() / 2;
+    // The quickstart with its first viewpoint only.
+    let text = common::portable_quickstart();
+    let second = text.match_indices("[[viewpoint]]").nth(1).unwrap().0;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("one_viewpoint.toml");
+    std::fs::write(&path, &text[..second]).unwrap();
+    let experiment = Experiment::load(&path).unwrap();
+    assert_eq!(experiment.viewpoints().len(), 1);
+    let centre = experiment.scanner().directions().len() / 2;
     let runs = 200;
     let mut errors: [Vec<(nalgebra::Vector3<f64>, Gaussian3)>; 3] = Default::default();
     for seed in 0..runs {
@@ -35,11 +38,11 @@ fn propagated_covariances_are_consistent_with_the_simulated_truth() {
         let beam = (centre..scan.measurements.len())
             .find(|&i| scan.measurements[i].status == BeamStatus::Hit)
             .unwrap();
-        let d = experiment.scanner.directions()[beam];
+        let d = experiment.scanner().directions()[beam];
         let r = scan.measurements[beam].range;
         let point = UncertainPoint {
             mean: d * r,
-            covariance: experiment.profile.range.point_covariance(&d, r),
+            covariance: experiment.profile().range.point_covariance(&d, r),
         };
         let chain = UncertainChain::paper(
             scan.chain.world_from_scene,

@@ -3,7 +3,7 @@
 //! must not depend on how the work was split or which thread came first;
 //! nor must the beam pooling's parallel windows, nor the surface samples).
 
-use sigmap::experiment::{simulate, Experiment};
+use sigmap::experiment::{simulate, Experiment, Overrides};
 use sigmap::geometry::Vector3;
 use sigmap::mapping::pooling::Pooling;
 use sigmap::mapping::{build_map, Method};
@@ -11,11 +11,11 @@ use std::path::Path;
 
 #[test]
 fn a_map_is_the_same_on_one_thread_and_on_three() {
-    let mut experiment = Experiment::load(Path::new(concat!(
+    let path = Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/experiments/quickstart.toml"
-    )))
-    .expect("quickstart");
+    ));
+    let experiment = Experiment::load(path).expect("quickstart");
     let run = simulate(&experiment, 1, |_| {}).expect("simulate");
     let pool = |threads| {
         rayon::ThreadPoolBuilder::new()
@@ -38,8 +38,12 @@ fn a_map_is_the_same_on_one_thread_and_on_three() {
         (Pooling::Windows, 0.01, Method::Unscented, true),
     ];
     for (pooling, resolution, method, samples) in cases {
-        experiment.map.beam_pooling = pooling;
-        experiment.map.interpolate_beams = samples;
+        let overrides = Overrides {
+            beam_pooling: Some(pooling),
+            interpolate_beams: Some(samples),
+            ..Overrides::default()
+        };
+        let experiment = Experiment::load_with(path, &[], &overrides).expect("quickstart");
         let view = experiment.mapper_view();
         let build = |pool: &rayon::ThreadPool| {
             pool.install(|| {

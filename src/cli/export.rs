@@ -9,21 +9,21 @@ use std::path::PathBuf;
 /// `sigmap export`.
 pub(crate) fn run(args: ExportArgs) -> Result<()> {
     let experiment = Experiment::load_cell_index(&args.experiment, args.cell)?;
-    let seed = args.run.seed.unwrap_or(experiment.seed);
+    let seed = args.run.seed.unwrap_or(experiment.seed());
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")
-            .join(&experiment.name)
+            .join(experiment.name())
             .join("export")
     });
-    let bar = progress_bar(experiment.viewpoints.len(), "simulating", args.run.quiet);
+    let bar = progress_bar(experiment.viewpoints().len(), "simulating", args.run.quiet);
     let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
     })??;
     bar.finish_and_clear();
-    let label = Experiment::cell_label(&experiment.cell);
+    let label = Experiment::cell_label(experiment.cell());
     let what = format!(
         "experiment '{}', seed {seed}{}",
-        experiment.name,
+        experiment.name(),
         if label.is_empty() {
             String::new()
         } else {
@@ -36,7 +36,7 @@ pub(crate) fn run(args: ExportArgs) -> Result<()> {
         &out,
         &view,
         &run.scans,
-        (experiment.resolution, &offset),
+        (experiment.resolution(), &offset),
         &what,
     )?;
     if !args.run.quiet {
@@ -47,7 +47,11 @@ pub(crate) fn run(args: ExportArgs) -> Result<()> {
         );
         println!(
             "{}",
-            graph2tree_command(&out, experiment.resolution, experiment.scanner.max_range)
+            graph2tree_command(
+                &out,
+                experiment.resolution(),
+                experiment.scanner().max_range
+            )
         );
     }
     Ok(())

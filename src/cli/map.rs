@@ -6,7 +6,7 @@ use super::{progress_bar, resolution_arg, with_threads, MapArgs};
 use crate::error::{Error, Result};
 use crate::experiment::recorded::{map_recorded, read_scan_graph, RecordedOptions};
 use crate::experiment::runner::registered_truth;
-use crate::experiment::{self, write_rays, Experiment};
+use crate::experiment::{self, write_rays, Experiment, Overrides};
 use crate::mapping::method::REGISTERED_TRUTH_FROM_SCANS;
 use crate::mapping::octomap_io::{check_octree_path, write_octree};
 use crate::mapping::octree::Octree;
@@ -29,32 +29,49 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
                 .into(),
         ));
     }
-    let path = experiment;
-    let mut experiment = Experiment::load(path)?;
-    if let Some(pooling) = args.beam_pooling {
-        experiment.map.beam_pooling = pooling;
-    }
-    if args.interpolate_beams && !experiment.map.interpolate_beams {
-        crate::mapping::scan::check_sample_budget(experiment.scanner.directions().len() as f64)
-            .map_err(|e| Error::input(path, format!("--interpolate-beams: {e}")))?;
-        experiment.map.interpolate_beams = true;
-    }
-    let resolution = resolution_arg(args.resolution.unwrap_or(experiment.resolution))?;
-    let seed = args.run.seed.unwrap_or(experiment.seed);
+    // The command line's values replace the file's and are checked as
+    // the file's are (the resolution's range, the clearing bound of the
+    // method, the sample budget), before the simulation.
+    let overrides = Overrides {
+        resolution: args.resolution,
+        seed: args.run.seed,
+        beam_pooling: args.beam_pooling,
+        interpolate_beams: args.interpolate_beams.then_some(true),
+        methods: Some(vec![args.method]),
+        grid_offset: None,
+    };
+    let experiment = Experiment::load_with(experiment, &[], &overrides).map_err(|e| {
+        // The library says which value is wrong; name the flag that gave it.
+        let given = [
+            (
+                "interpolate_beams",
+                "--interpolate-beams",
+                args.interpolate_beams,
+            ),
+            ("resolution", "--resolution", args.resolution.is_some()),
+            (
+                "beam_pooling",
+                "--beam-pooling",
+                args.beam_pooling.is_some(),
+            ),
+        ];
+        let message = e.to_string();
+        match given
+            .iter()
+            .find(|(key, _, on)| *on && message.contains(key))
+        {
+            Some((_, flag, _)) => e.context(format!("{flag}: ")),
+            None => e,
+        }
+    })?;
+    let (resolution, seed) = (experiment.resolution(), experiment.seed());
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")
-            .join(&experiment.name)
+            .join(experiment.name())
             .join(format!("map_{}.bt", args.method))
     });
     check_octree_path(&out)?;
-    if args.method.builds_grids() {
-        // Before the simulation: build_map would refuse the same after it.
-        experiment
-            .scanner
-            .check_clearing(resolution)
-            .map_err(|e| Error::input(&experiment.source, e))?;
-    }
-    let bar = progress_bar(experiment.viewpoints.len(), "simulating", args.run.quiet);
+    let bar = progress_bar(experiment.viewpoints().len(), "simulating", args.run.quiet);
     let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
     })??;
@@ -73,7 +90,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         })??
     };
     let seconds = start.elapsed().as_secs_f64();
-    write_octree(&out, &tree, experiment.map.clamp())?;
+    write_octree(&out, &tree, experiment.map().clamp())?;
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
     if !args.run.quiet {
         report(&args, resolution, &tree, beams, seconds, &out);

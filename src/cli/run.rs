@@ -62,10 +62,10 @@ fn print_headline(experiment: &Experiment, summary: &[SummaryRow], rows: usize) 
     };
     println!(
         "{}: {} seeds x {} methods ({rows} runs), {} m voxels; means over seeds{}",
-        experiment.name,
-        experiment.seeds.len(),
-        experiment.methods.len(),
-        experiment.resolution,
+        experiment.name(),
+        experiment.seeds().len(),
+        experiment.methods().len(),
+        experiment.resolution(),
         if first.is_empty() {
             String::new()
         } else {
@@ -76,7 +76,7 @@ fn print_headline(experiment: &Experiment, summary: &[SummaryRow], rows: usize) 
         "{:<11} {:>7} {:>7} {:>7} {:>11} {:>9} {:>7} {:>8} {:>9}",
         "method", "prec", "recall", "F1", "false-free", "unknown", "Brier", "ROC AUC", "ANEES"
     );
-    for method in &experiment.methods {
+    for method in experiment.methods() {
         let m = method.as_str();
         println!(
             "{:<11} {:>7.3} {:>7.3} {:>7.3} {:>11.4} {:>9.3} {:>7.3} {:>8.3} {:>9.2}",
@@ -97,17 +97,18 @@ fn print_headline(experiment: &Experiment, summary: &[SummaryRow], rows: usize) 
 /// metric's mean per-seed difference, its 95% interval and the verdict.
 fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
     let first = paired.first().map(|p| p.cell.clone()).unwrap_or_default();
-    if experiment.methods.len() < 2 || experiment.seeds.len() < 2 {
+    if experiment.methods().len() < 2 || experiment.seeds().len() < 2 {
         return;
     }
     println!(
         "paired against {} (method - {}, per seed): mean [95% interval] verdict",
-        experiment.reference, experiment.reference
+        experiment.reference(),
+        experiment.reference()
     );
     for method in experiment
-        .methods
+        .methods()
         .iter()
-        .filter(|&m| *m != experiment.reference)
+        .filter(|&m| m != experiment.reference())
     {
         for (metric, title, digits) in HEADLINE {
             let Some(p) = paired

@@ -21,18 +21,18 @@ pub(crate) fn run(args: ScoreArgs) -> Result<()> {
         (Some(scene), _) => against_scene(&args, scene, &name)?,
         (None, Some(path)) => {
             let experiment = Experiment::load_cell_index(path, args.cell)?;
-            let seed = args.run.seed.unwrap_or(experiment.seed);
-            let map = read_octree(&args.map, experiment.map.clamp())?;
+            let seed = args.run.seed.unwrap_or(experiment.seed());
+            let map = read_octree(&args.map, experiment.map().clamp())?;
             let row = with_threads(args.run.threads, || {
                 score_external(&experiment, seed, &map, &name)
             })??;
-            let cell = match Experiment::cell_label(&experiment.cell) {
+            let cell = match Experiment::cell_label(experiment.cell()) {
                 label if label.is_empty() => String::new(),
                 label => format!(", cell {label}"),
             };
             (
                 row,
-                format!("experiment '{}', seed {seed}{cell}", experiment.name),
+                format!("experiment '{}', seed {seed}{cell}", experiment.name()),
             )
         }
         (None, None) => {

@@ -8,12 +8,12 @@ use std::time::Instant;
 /// `sigmap simulate`.
 pub(crate) fn run(args: SimulateArgs) -> Result<()> {
     let experiment = Experiment::load(&args.experiment)?;
-    let seed = args.run.seed.unwrap_or(experiment.seed);
+    let seed = args.run.seed.unwrap_or(experiment.seed());
     let out = args
         .out
         .clone()
         .unwrap_or_else(|| experiment::default_scan_dir(&experiment));
-    let bar = progress_bar(experiment.viewpoints.len(), "viewpoints", args.run.quiet);
+    let bar = progress_bar(experiment.viewpoints().len(), "viewpoints", args.run.quiet);
     let start = Instant::now();
     let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |done| bar.set_position(done as u64))

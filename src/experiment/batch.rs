@@ -46,7 +46,7 @@ pub struct RunOutcome {
 /// The results folder of `experiment` unless one is given.
 pub fn results_dir(experiment: &Experiment, out: Option<&Path>) -> PathBuf {
     out.map_or_else(
-        || PathBuf::from("results").join(&experiment.name),
+        || PathBuf::from("results").join(experiment.name()),
         Path::to_path_buf,
     )
 }
@@ -70,7 +70,7 @@ pub fn run_experiment(
         .collect::<Result<_>>()?;
     let labels: Vec<String> = cells
         .iter()
-        .map(|c| Experiment::cell_label(&c.cell))
+        .map(|c| Experiment::cell_label(c.cell()))
         .collect();
     let out = results_dir(&experiment, options.out.as_deref());
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
@@ -128,8 +128,8 @@ pub fn run_experiment(
     // cells the experiment does not have are dropped, and so are repeats.
     let wanted = Wanted {
         cells: &labels,
-        seeds: &experiment.seeds,
-        methods: &experiment.methods,
+        seeds: experiment.seeds(),
+        methods: experiment.methods(),
     };
     let mut rows: Vec<RunRow> = read_rows(&runs_path)?;
     let (journal_rows, journal_timings) = read_journal(&journal_path)?;
@@ -141,7 +141,7 @@ pub fn run_experiment(
     timings.extend(journal_timings);
     wanted.keep(&mut timings);
     timings.retain(|t| done.contains(&(t.cell.clone(), t.seed)));
-    let mine = shard_runs(cells.len(), &experiment.seeds, shard, shards);
+    let mine = shard_runs(cells.len(), experiment.seeds(), shard, shards);
     let pending: Vec<(usize, u64)> = mine
         .iter()
         .copied()
@@ -156,7 +156,7 @@ pub fn run_experiment(
             .open(&journal_path)
             .map_err(|e| Error::io(&journal_path, e))?,
     );
-    let first_seed = experiment.seeds[0];
+    let first_seed = experiment.seeds()[0];
     let results = {
         pending
             .par_iter()
@@ -164,18 +164,18 @@ pub fn run_experiment(
                 let truth = ground_truth(&cells[c], seed);
                 let (new_rows, new_timings, maps) = run_seed(&cells[c], &truth, seed)?;
                 if c == 0 && seed == first_seed {
-                    for (method, map) in experiment.methods.iter().zip(&maps) {
+                    for (method, map) in experiment.methods().iter().zip(&maps) {
                         let path = out.join(format!("map_{method}.bt"));
-                        write_octree(&path, map, cells[0].map.clamp())?;
+                        write_octree(&path, map, cells[0].map().clamp())?;
                     }
                     let offset = cells[0].map_offset(seed);
-                    let workspace = &cells[0].scene.workspace;
+                    let workspace = &cells[0].scene().workspace;
                     let workspace = crate::sim::scene::Bounds {
                         min: workspace.min + offset,
                         max: workspace.max + offset,
                     };
                     let pairs: Vec<_> = experiment
-                        .methods
+                        .methods()
                         .iter()
                         .cloned()
                         .zip(maps.iter())
@@ -261,7 +261,7 @@ fn finalize(
     mut rows: Vec<RunRow>,
     mut timings: Vec<TimingRow>,
 ) -> Result<(Study, Vec<PathBuf>)> {
-    let methods: &[RunMethod] = &experiment.methods;
+    let methods: &[RunMethod] = experiment.methods();
     let method_order = |m: &str| {
         methods
             .iter()
@@ -278,7 +278,7 @@ fn finalize(
     write_rows(&out.join("timings.csv"), &timings)?;
     let summary = summarise(&rows, labels, methods);
     write_rows(&out.join("summary.csv"), &summary)?;
-    let paired = paired(&rows, labels, methods, &experiment.reference);
+    let paired = paired(&rows, labels, methods, experiment.reference());
     write_rows(&out.join("paired.csv"), &paired)?;
     let mut charts = plots::plot_scores(
         &out.join("scores.svg"),
@@ -325,7 +325,7 @@ fn write_manifest(
     shards: usize,
 ) -> Result<()> {
     let manifest = Manifest {
-        experiment: experiment.name.clone(),
+        experiment: experiment.name().to_string(),
         fingerprint: inputs.fingerprint.clone(),
         version: env!("CARGO_PKG_VERSION").into(),
         shard: format!("{shard}/{shards}"),
@@ -369,7 +369,8 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
     for dir in shards {
         let manifest_path = dir.join("run.toml");
         let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
-        if manifest.experiment != experiment.name || manifest.fingerprint != expected.fingerprint {
+        if manifest.experiment != experiment.name() || manifest.fingerprint != expected.fingerprint
+        {
             return Err(Error::input(
                 &manifest_path,
                 format!(
@@ -402,8 +403,8 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
     // shard's runs.csv and its journal, counts once).
     let wanted = Wanted {
         cells: &labels,
-        seeds: &experiment.seeds,
-        methods: &experiment.methods,
+        seeds: experiment.seeds(),
+        methods: experiment.methods(),
     };
     wanted.keep(&mut rows);
     wanted.keep(&mut timings);
@@ -414,9 +415,9 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
     let missing: Vec<String> = labels
         .iter()
         .flat_map(|c| {
-            let methods = &experiment.methods;
+            let methods = experiment.methods();
             experiment
-                .seeds
+                .seeds()
                 .iter()
                 .flat_map(move |s| methods.iter().map(move |m| (c, *s, m)))
         })
@@ -463,14 +464,14 @@ mod tests {
             "/experiments/quickstart.toml"
         )))
         .unwrap();
-        experiment.name = "a \"quoted\" name\nover two lines".into();
+        *experiment.name_mut() = "a \"quoted\" name\nover two lines".into();
         let inputs = Inputs {
             fingerprint: "0123".into(),
             files: vec![("dir/with \"quote\".toml".into(), "beef".into())],
         };
         write_manifest(dir.path(), &experiment, &inputs, 2, 3).unwrap();
         let manifest: Manifest = crate::error::read_toml(&dir.path().join("run.toml")).unwrap();
-        assert_eq!(manifest.experiment, experiment.name);
+        assert_eq!(manifest.experiment, experiment.name());
         assert_eq!(manifest.shard, "2/3");
         assert_eq!(manifest.inputs["dir/with \"quote\".toml"], "beef");
     }

@@ -72,11 +72,11 @@ pub fn progress(experiment: &Experiment, out: &Path, tasks: usize) -> Result<Vec
             let dir = shard_dir(out, shard);
             let wanted = Wanted {
                 cells: &labels,
-                seeds: &experiment.seeds,
-                methods: &experiment.methods,
+                seeds: experiment.seeds(),
+                methods: experiment.methods(),
             };
             let done = finished_runs(&dir, &wanted)?;
-            let expected = shard_runs(labels.len(), &experiment.seeds, shard, tasks);
+            let expected = shard_runs(labels.len(), experiment.seeds(), shard, tasks);
             let missing = expected
                 .iter()
                 .filter(|(c, s)| !done.contains(&(labels[*c].clone(), *s)))
@@ -214,7 +214,7 @@ pub fn submit(
          set -euo pipefail\n\
          exec {sigmap} run {experiment} --shard \"$SLURM_ARRAY_TASK_ID/{tasks}\" \\\n    \
          --out {out}/shard_\"$SLURM_ARRAY_TASK_ID\" --threads \"${{SLURM_CPUS_PER_TASK:-1}}\" --quiet\n",
-        name = experiment.name,
+        name = experiment.name(),
         logs = out.join("logs").display(),
         sigmap = quote(&sigmap),
         experiment = quote(&experiment_path),
@@ -230,7 +230,7 @@ pub fn submit(
          #SBATCH --output={logs}/merge.log\n\
          set -euo pipefail\n\
          exec {sigmap} merge {experiment} {shards} --out {out}\n",
-        name = experiment.name,
+        name = experiment.name(),
         logs = out.join("logs").display(),
         sigmap = quote(&sigmap),
         experiment = quote(&experiment_path),

@@ -13,7 +13,7 @@ use crate::sim::scene::Scene;
 use crate::sim::sensor::Scanner;
 use crate::sim::streams::{Stream, Streams};
 use crate::uncertainty::SigmaSet;
-use file::{ExperimentFile, ViewpointSpec};
+use file::ViewpointSpec;
 use nalgebra::Unit;
 use rand::Rng;
 use serde::Deserialize;
@@ -71,65 +71,84 @@ pub struct Viewpoint {
     pub joints: Vec<f64>,
 }
 
+/// Values that replace an experiment file's own (`sigmap map
+/// --resolution`, `--seed`, `--method`, ...), checked exactly as the file's
+/// are when the experiment is loaded ([`Experiment::load_with`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Overrides {
+    /// The map's finest voxel edge (m).
+    pub resolution: Option<f64>,
+    /// The run's seed (`seed`).
+    pub seed: Option<u64>,
+    /// `beam_pooling`.
+    pub beam_pooling: Option<crate::mapping::pooling::Pooling>,
+    /// `interpolate_beams`.
+    pub interpolate_beams: Option<bool>,
+    /// `methods` (sigmap's own; the `[[mapper]]` tables still join them).
+    pub methods: Option<Vec<crate::mapping::Method>>,
+    /// `grid_offset`.
+    pub grid_offset: Option<bool>,
+}
+
 /// A loaded and checked experiment.
 pub struct Experiment {
     /// Its name (the results folder is `results/<name>/`).
-    pub name: String,
+    name: String,
     /// Free text.
-    pub description: String,
+    description: String,
     /// The experiment file.
-    pub source: PathBuf,
+    source: PathBuf,
     /// The run's seed.
-    pub seed: u64,
+    seed: u64,
     /// The map's finest voxel edge (m): `resolution` in the file, default 0.01.
-    pub resolution: f64,
+    resolution: f64,
     /// Whether the scene sits at a sub-voxel offset drawn from each run's seed
     /// (`grid_offset = true`), so that no face lies on a cell plane by design.
-    pub grid_offset: bool,
+    grid_offset: bool,
     /// How maps are built: OctoMap's hit, miss and clamp (`[map]`), the
     /// cell model's bounds (`[map]`) and risk level ε (`risk`, off when
     /// absent; docs/math.md §5.4), beam pooling (`beam_pooling =
     /// "faces"`, `"windows"` or `true`; §5.5) and surface samples between
     /// beams (`interpolate_beams = true`; §5.4). Defaults: OctoMap's and the
     /// paper's values, pooling and samples off.
-    pub map: MapSettings,
+    map: MapSettings,
     /// The sigma-point set of the `unscented` and `correlated` methods: the
     /// paper's, or the scaled set of an `[unscented]` table (docs/math.md
     /// §3.2).
-    pub sigma_set: SigmaSet,
+    sigma_set: SigmaSet,
     /// The seeds of `sigmap run` (`seeds = [..]`, default `[seed]`).
-    pub seeds: Vec<u64>,
+    seeds: Vec<u64>,
     /// The modelling methods compared by `sigmap run`: `methods` (default
     /// blind, unscented, ray_update), then the `[[mapper]]` tables.
-    pub methods: Vec<RunMethod>,
+    methods: Vec<RunMethod>,
     /// The method every other one is paired against in `paired.csv`
     /// (`reference = ".."`; default `ray_update` when listed, else the
     /// first method).
-    pub reference: RunMethod,
+    reference: RunMethod,
     /// The workcell scene.
-    pub scene: Scene,
+    scene: Scene,
     /// The robot.
-    pub robot: Robot,
+    robot: Robot,
     /// `base_link -> flange_link`: the arm (T_rw = world_from_base · FK).
-    pub arm: KinematicChain,
+    arm: KinematicChain,
     /// `base_link -> sensor_link`, for inverse kinematics.
-    pub sensor_chain: KinematicChain,
+    sensor_chain: KinematicChain,
     /// Nominal `robot_from_camera` (T_cr): the URDF's flange → laser joints.
-    pub robot_from_camera: Pose,
+    robot_from_camera: Pose,
     /// Where the robot base stands in the world.
-    pub world_from_base: Isometry3,
+    world_from_base: Isometry3,
     /// Nominal `world_from_scene` (T_sw).
-    pub world_from_scene: Pose,
+    world_from_scene: Pose,
     /// The scanner.
-    pub scanner: Scanner,
+    scanner: Scanner,
     /// The error profile.
-    pub profile: ErrorProfile,
+    profile: ErrorProfile,
     /// The viewpoints, resolved to joint configurations.
-    pub viewpoints: Vec<Viewpoint>,
+    viewpoints: Vec<Viewpoint>,
     /// The sweep axes (runs are their cartesian product times the seeds).
-    pub sweep: Vec<SweepAxis>,
+    sweep: Vec<SweepAxis>,
     /// The sweep values this experiment was loaded with (empty: the base).
-    pub cell: Vec<(String, SweepValue)>,
+    cell: Vec<(String, SweepValue)>,
 }
 
 impl Experiment {
@@ -157,228 +176,7 @@ impl Experiment {
 
     /// Reads the experiment with one sweep cell's values applied.
     pub fn load_cell(path: &Path, cell: &[(String, SweepValue)]) -> Result<Self> {
-        let mut by_file: [Vec<(String, toml::Value)>; 3] = Default::default();
-        let mut pose_scale = None;
-        for (field, value) in cell {
-            if let SweepValue::Number(v) = value {
-                if !v.is_finite() {
-                    return Err(Error::input(
-                        path,
-                        format!("sweep field '{field}': value {v} is not finite"),
-                    ));
-                }
-            }
-            let target = [("experiment.", 0), ("profile.", 1), ("scene.", 2)]
-                .iter()
-                .find_map(|(prefix, i)| {
-                    field
-                        .strip_prefix(prefix)
-                        .map(|rest| (*i, rest.to_string()))
-                });
-            match (field.as_str(), target) {
-                ("pose_error_scale", _) => match value {
-                    SweepValue::Number(v) if *v >= 0.0 => pose_scale = Some(*v),
-                    _ => {
-                        return Err(Error::input(
-                            path,
-                            format!("pose_error_scale = {value} must be a number >= 0"),
-                        ))
-                    }
-                },
-                (_, Some((i, rest))) => by_file[i].push((rest, value.to_toml())),
-                _ => {
-                    return Err(Error::input(
-                        path,
-                        format!(
-                        "unknown sweep field '{field}' (use pose_error_scale, experiment.<path>, \
-                             profile.<path> or scene.<path>)"
-                    ),
-                    ))
-                }
-            }
-        }
-        let file: ExperimentFile = read_toml_with(path, &by_file[0])?;
-        let dir = path.parent().unwrap_or(Path::new("."));
-        let bad = |msg: String| Error::input(path, msg);
-        let scene = Scene::load_with(&dir.join(&file.scene), &by_file[2])?;
-        let mut profile = ErrorProfile::load_with(&dir.join(&file.error_profile), &by_file[1])?;
-        if let Some(scale) = pose_scale {
-            profile.scale_pose_errors(scale);
-        }
-        let what = match pose_scale {
-            Some(scale) => format!("at pose_error_scale = {scale:e}"),
-            None => "the profile".into(),
-        };
-        profile
-            .check_pose_magnitudes(&what)
-            .map_err(|e| Error::input(&profile.source, e))?;
-        for (i, axis) in file.sweeps.iter().enumerate() {
-            if axis.values.is_empty() {
-                return Err(bad(format!("[[sweep]] '{}' has no values", axis.field)));
-            }
-            if file.sweeps[..i].iter().any(|a| a.field == axis.field) {
-                return Err(bad(format!("[[sweep]] '{}' is swept twice", axis.field)));
-            }
-            let labels: Vec<String> = axis
-                .values
-                .iter()
-                .map(std::string::ToString::to_string)
-                .collect();
-            if let Some(label) = first_repeat(&labels) {
-                return Err(bad(format!(
-                    "[[sweep]] '{}' lists the value {label} more than once",
-                    axis.field
-                )));
-            }
-        }
-        let robot = Robot::load(&dir.join(&file.robot.urdf))?;
-        let mount = &file.robot;
-        let arm = robot.chain(&mount.base_link, &mount.flange_link)?;
-        let sensor_chain = robot.chain(&mount.base_link, &mount.sensor_link)?;
-        let mount_chain = robot.chain(&mount.flange_link, &mount.sensor_link)?;
-        if mount_chain.dof() != 0 {
-            return Err(bad(format!(
-                "[robot] the joints between '{}' and '{}' must all be fixed: they are the sensor mount T_cr",
-                mount.flange_link, mount.sensor_link
-            )));
-        }
-        let robot_from_camera = Pose::from_isometry(&mount_chain.forward_unchecked(&[]));
-        if let crate::sim::profile::ArmError::Joints(s) = &profile.arm {
-            if s.len() != arm.dof() {
-                return Err(Error::input(
-                    &profile.source,
-                    format!(
-                        "[world_from_robot] joint_sigma has {} values, the arm '{}' has {} joints",
-                        s.len(),
-                        robot.name,
-                        arm.dof()
-                    ),
-                ));
-            }
-        }
-        let base = Pose::new(mount.xyz, mount.rpy);
-        let world_from_scene = Pose::new(file.world_from_scene.xyz, file.world_from_scene.rpy);
-        if !base.is_finite() || !world_from_scene.is_finite() {
-            return Err(bad(
-                "[robot] and [world_from_scene] poses must be finite".into()
-            ));
-        }
-        if !crate::mapping::octree::RESOLUTIONS.contains(&file.resolution) {
-            return Err(bad(format!(
-                "resolution = {} must be between 0.001 and 1 m",
-                file.resolution
-            )));
-        }
-        let pooling = file.beam_pooling.pooling().map_err(&bad)?;
-        let mut map = MapSettings::new(&file.map, file.risk, pooling).map_err(&bad)?;
-        map.interpolate_beams = file
-            .interpolate_beams
-            .on("interpolate_beams")
-            .map_err(&bad)?;
-        let sigma_set = match &file.unscented {
-            Some(spec) => SigmaSet::scaled(spec.alpha, spec.beta, spec.kappa)
-                .map_err(|e| bad(format!("[unscented] {e}")))?,
-            None => SigmaSet::Paper,
-        };
-        let seeds = match &file.seeds {
-            Some(spec) => spec.seeds(MAX_SEEDS as u64).map_err(&bad)?,
-            None => vec![file.seed],
-        };
-        if seeds.len() > MAX_SEEDS {
-            return Err(bad(format!(
-                "`seeds` lists {} seeds; sigmap runs at most {MAX_SEEDS} seeds per experiment",
-                seeds.len()
-            )));
-        }
-        if seeds.is_empty() {
-            return Err(bad("`seeds` is empty".into()));
-        }
-        if let Some(seed) = first_repeat(&seeds) {
-            return Err(bad(format!("`seeds` lists {seed} more than once")));
-        }
-        let methods = match &file.methods {
-            None => vec![
-                crate::mapping::Method::Blind,
-                crate::mapping::Method::Unscented,
-                crate::mapping::Method::RayUpdate,
-            ],
-            Some(names) => names
-                .iter()
-                .map(|n| n.parse().map_err(&bad))
-                .collect::<Result<Vec<_>>>()?,
-        };
-        if methods.is_empty() {
-            return Err(bad("`methods` is empty".into()));
-        }
-        if let Some(method) = first_repeat(&methods) {
-            return Err(bad(format!("`methods` lists {method} more than once")));
-        }
-        let builds_grids = methods.iter().any(|m| m.builds_grids());
-        let mut methods: Vec<RunMethod> = methods.into_iter().map(RunMethod::Own).collect();
-        let folder = path.parent().unwrap_or(Path::new("."));
-        for spec in file.mappers {
-            let taken: Vec<&str> = crate::mapping::Method::ALL
-                .iter()
-                .map(|m| m.as_str())
-                .chain(methods.iter().map(RunMethod::as_str))
-                .collect();
-            let mapper = spec.check(folder, &taken).map_err(&bad)?;
-            methods.push(RunMethod::External(std::sync::Arc::new(mapper)));
-        }
-        let reference = reference_method(file.reference.as_deref(), &methods).map_err(&bad)?;
-        let scanner = file.sensor.build().map_err(bad)?;
-        if file.viewpoints.is_empty() {
-            return Err(bad("the experiment has no [[viewpoint]]".into()));
-        }
-        let beams = scanner.directions().len() as f64 * file.viewpoints.len() as f64;
-        if file.viewpoints.len() > MAX_VIEWPOINTS || beams > MAX_BEAMS_PER_RUN {
-            return Err(bad(format!(
-                "{} viewpoints x {} beams = {beams:.3e} beams per run; sigmap handles at most \
-                 {MAX_VIEWPOINTS} viewpoints and {MAX_BEAMS_PER_RUN:.0} beams per run \
-                 (use fewer viewpoints or larger sensor steps)",
-                file.viewpoints.len(),
-                scanner.directions().len()
-            )));
-        }
-        if map.interpolate_beams {
-            check_sample_budget(scanner.directions().len() as f64).map_err(&bad)?;
-        }
-        crate::eval::ground_truth::check_resolution(&scene, file.resolution)?;
-        if builds_grids {
-            scanner.check_clearing(file.resolution).map_err(bad)?;
-        }
-        let mut experiment = Self {
-            name: file.name.unwrap_or_else(|| crate::sim::scene::stem(path)),
-            description: file.description,
-            source: path.to_path_buf(),
-            seed: file.seed,
-            resolution: file.resolution,
-            grid_offset: file.grid_offset,
-            map,
-            sigma_set,
-            seeds,
-            methods,
-            reference,
-            scene,
-            robot,
-            arm,
-            sensor_chain,
-            robot_from_camera,
-            world_from_base: base.to_isometry(),
-            world_from_scene,
-            scanner,
-            profile,
-            viewpoints: Vec::new(),
-            sweep: file.sweeps.clone(),
-            cell: cell.to_vec(),
-        };
-        for (index, spec) in file.viewpoints.iter().enumerate() {
-            let viewpoint = experiment
-                .resolve(index, spec)
-                .map_err(|e| e.context(format!("viewpoint {index}: ")))?;
-            experiment.viewpoints.push(viewpoint);
-        }
-        Ok(experiment)
+        Self::load_with(path, cell, &Overrides::default())
     }
 
     /// What a mapper may know of this experiment: the scanner's beam
@@ -568,6 +366,8 @@ fn first_repeat<T: PartialEq>(values: &[T]) -> Option<&T> {
         .map(|(_, v)| v)
 }
 
+mod access;
 mod file;
+mod load;
 #[cfg(test)]
 mod tests;

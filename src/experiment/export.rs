@@ -141,7 +141,7 @@ mod tests {
             .iter()
             .any(|m| m.status == BeamStatus::Dropout));
         for scan in &run.scans {
-            let (origin, hits, _) = ray_inputs(&experiment.scanner.layout, scan);
+            let (origin, hits, _) = ray_inputs(&experiment.scanner().layout, scan);
             let (ply_origin, ply_hits) =
                 read_ply(&out.join(format!("vp_{:03}.ply", scan.viewpoint))).unwrap();
             assert!((Vector3::from(ply_origin) - (origin.coords + offset)).norm() < 1e-12);

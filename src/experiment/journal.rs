@@ -55,15 +55,15 @@ pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
     let mut hash = fnv(FNV_OFFSET, env!("CARGO_PKG_VERSION").as_bytes());
     let mut files: Vec<(String, String)> = Vec::new();
     for cell in cells {
-        hash = fnv(hash, Experiment::cell_label(&cell.cell).as_bytes());
-        let mut paths: Vec<PathBuf> = [&cell.source, &cell.profile.source, &cell.robot.source]
+        hash = fnv(hash, Experiment::cell_label(cell.cell()).as_bytes());
+        let mut paths: Vec<PathBuf> = [cell.source(), &cell.profile().source, &cell.robot().source]
             .into_iter()
-            .chain(&cell.scene.inputs)
-            .cloned()
+            .chain(cell.scene().inputs.iter().map(PathBuf::as_path))
+            .map(Path::to_path_buf)
             .collect();
         // An external mapper is its program and the scripts it names: a
         // rebuilt one is new input.
-        for method in &cell.methods {
+        for method in cell.methods() {
             if let RunMethod::External(mapper) = method {
                 paths.extend(mapper.inputs()?);
             }

@@ -42,7 +42,7 @@ pub mod scoring;
 mod simulate;
 pub mod summary;
 
-pub use config::{Experiment, SweepAxis, SweepValue, Viewpoint};
+pub use config::{Experiment, Overrides, SweepAxis, SweepValue, Viewpoint};
 pub use run_method::RunMethod;
 pub use scan_files::{chain_file, default_scan_dir, read_ply, write_ply, write_rays, write_scans};
 pub use simulate::{simulate, RunTruth, SimulatedRun};

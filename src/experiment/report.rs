@@ -87,18 +87,18 @@ pub fn render(
     charts: &[PathBuf],
 ) -> Result<String> {
     let mut html = String::new();
-    let name = escape(&experiment.name);
+    let name = escape(experiment.name());
     let _ = write!(
         html,
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n\
          <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n\
          <title>sigmap: {name}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n\
          <h1>{name}</h1>\n<p class=\"description\">{}</p>\n<dl>\n",
-        escape(&experiment.description)
+        escape(experiment.description())
     );
-    let seeds: Vec<String> = experiment.seeds.iter().map(u64::to_string).collect();
+    let seeds: Vec<String> = experiment.seeds().iter().map(u64::to_string).collect();
     let methods: Vec<&str> = experiment
-        .methods
+        .methods()
         .iter()
         .map(super::run_method::RunMethod::as_str)
         .collect();
@@ -107,7 +107,7 @@ pub fn render(
         ("input fingerprint", inputs.fingerprint.clone()),
         ("seeds", seeds.join(", ")),
         ("methods", methods.join(", ")),
-        ("resolution", format!("{} m", experiment.resolution)),
+        ("resolution", format!("{} m", experiment.resolution())),
         ("sweep cells", experiment.cells().len().to_string()),
     ] {
         let _ = writeln!(html, "<dt>{term}</dt><dd>{}</dd>", escape(&value));
@@ -185,9 +185,9 @@ fn headline(
          they are compared seed by seed: the second table gives each method's mean \
          difference from <b>{}</b> (method − {}), its 95% interval and the verdict \
          (paired.csv).</p>",
-        experiment.seeds.len(),
-        experiment.reference,
-        experiment.reference
+        experiment.seeds().len(),
+        experiment.reference(),
+        experiment.reference()
     );
     let mut cells: Vec<&str> = Vec::new();
     for row in summary {
@@ -204,7 +204,7 @@ fn headline(
             let _ = write!(html, "<th>{title}</th>");
         }
         html.push_str("</tr>\n");
-        for method in &experiment.methods {
+        for method in experiment.methods() {
             let _ = write!(html, "<tr><td>{}</td>", method.as_str());
             for (metric, _, digits) in HEADLINE {
                 let row = summary
@@ -234,22 +234,22 @@ fn headline(
 
 /// The paired table of one cell (nothing with a single method).
 fn paired_table(html: &mut String, experiment: &Experiment, cell: &str, paired: &[PairedRow]) {
-    if experiment.methods.len() < 2 {
+    if experiment.methods().len() < 2 {
         return;
     }
     let _ = write!(
         html,
         "<table class=\"paired\">\n<tr><th>against {}</th>",
-        experiment.reference
+        experiment.reference()
     );
     for (_, title, _) in HEADLINE {
         let _ = write!(html, "<th>{title}</th>");
     }
     html.push_str("</tr>\n");
     for method in experiment
-        .methods
+        .methods()
         .iter()
-        .filter(|&m| *m != experiment.reference)
+        .filter(|&m| m != experiment.reference())
     {
         let _ = write!(html, "<tr><td>{}</td>", method.as_str());
         for (metric, _, digits) in HEADLINE {

@@ -43,8 +43,8 @@ pub struct TimingRow {
 /// `Experiment::map_offset`).
 pub fn ground_truth(experiment: &Experiment, seed: u64) -> Octree {
     voxelise_at(
-        &experiment.scene,
-        experiment.resolution,
+        experiment.scene(),
+        experiment.resolution(),
         &experiment.map_offset(seed),
     )
 }
@@ -62,7 +62,7 @@ pub fn registered_truth(
     offset: &Vector3,
 ) -> Octree {
     let map_from_scene = registered_placement(experiment, truth, offset);
-    voxelise_in(&experiment.scene, resolution, &map_from_scene)
+    voxelise_in(experiment.scene(), resolution, &map_from_scene)
 }
 
 /// Where the run's registration places the scene in the map frame:
@@ -73,7 +73,7 @@ pub fn registered_placement(
     offset: &Vector3,
 ) -> Isometry3 {
     Isometry3::translation(offset.x, offset.y, offset.z)
-        * experiment.world_from_scene.to_isometry().inverse()
+        * experiment.world_from_scene().to_isometry().inverse()
         * truth.world_from_scene
 }
 
@@ -84,10 +84,10 @@ pub fn observable(
     offset: &Vector3,
 ) -> FxHashSet<u64> {
     observable_cells(
-        experiment.scanner.directions(),
-        experiment.scanner.max_range,
+        experiment.scanner().directions(),
+        experiment.scanner().max_range,
         truths,
-        experiment.resolution,
+        experiment.resolution(),
         offset,
     )
 }
@@ -102,9 +102,9 @@ pub fn run_seed(
     let start = Instant::now();
     let seed_run = SeedRun::new(experiment, seed)?;
     let simulate_s = start.elapsed().as_secs_f64();
-    let cell = Experiment::cell_label(&experiment.cell);
+    let cell = Experiment::cell_label(experiment.cell());
     let (mut rows, mut timings, mut maps) = (Vec::new(), Vec::new(), Vec::new());
-    for method in &experiment.methods {
+    for method in experiment.methods() {
         let start = Instant::now();
         let map = seed_run.map(method, &cell)?;
         let model_s = start.elapsed().as_secs_f64();
@@ -137,7 +137,7 @@ pub fn run_seed(
             cell.clone(),
             seed,
             name,
-            experiment.resolution,
+            experiment.resolution(),
             &measured,
         ));
         timings.push(TimingRow {
@@ -174,7 +174,7 @@ impl<'a> SeedRun<'a> {
         let measured = run
             .scans
             .iter()
-            .map(|scan| measured_ranges(&view, &experiment.scanner.layout, scan))
+            .map(|scan| measured_ranges(&view, &experiment.scanner().layout, scan))
             .collect::<std::result::Result<_, _>>()
             .map_err(Error::Usage)?;
         Ok(Self {
@@ -196,7 +196,7 @@ impl<'a> SeedRun<'a> {
             RunMethod::Own(Method::RegisteredTruth) => Ok(registered_truth(
                 experiment,
                 &self.run.truth,
-                experiment.resolution,
+                experiment.resolution(),
                 &self.offset,
             )),
             RunMethod::Own(method) => {
@@ -210,7 +210,7 @@ impl<'a> SeedRun<'a> {
                     scans,
                     extras,
                     *method,
-                    experiment.resolution,
+                    experiment.resolution(),
                     &self.offset,
                 )
             }
@@ -219,9 +219,9 @@ impl<'a> SeedRun<'a> {
                 seed: self.seed,
                 view: &view,
                 scans: &self.run.scans,
-                resolution: experiment.resolution,
+                resolution: experiment.resolution(),
                 offset: &self.offset,
-                clamp: experiment.map.clamp(),
+                clamp: experiment.map().clamp(),
             }),
         }
     }
@@ -234,10 +234,10 @@ impl<'a> SeedRun<'a> {
         let mut pairs = Vec::new();
         let scans = self.run.scans.iter().zip(&self.run.truth.scans);
         for ((scan, truth), points) in scans.zip(&self.measured) {
-            if let Some(p) = propagator(method, &scan_chain(scan), experiment.sigma_set) {
+            if let Some(p) = propagator(method, &scan_chain(scan), experiment.sigma_set()) {
                 pairs.extend(errors_against_truth(
-                    &experiment.profile.range,
-                    experiment.scanner.directions(),
+                    &experiment.profile().range,
+                    experiment.scanner().directions(),
                     truth,
                     points,
                     p.as_ref(),
@@ -396,7 +396,7 @@ mod tests {
         let (mut hits, mut in_registered, mut in_truth) = (0, 0, 0);
         for (scan, seen) in run.scans.iter().zip(&run.truth.scans) {
             let map_from_camera = scan.chain.scene_from_camera();
-            for (beam, d) in seen.beams.iter().zip(experiment.scanner.directions()) {
+            for (beam, d) in seen.beams.iter().zip(experiment.scanner().directions()) {
                 if !beam.range.is_finite() {
                     continue;
                 }
@@ -436,7 +436,7 @@ mod tests {
             "/experiments/quickstart.toml"
         )))
         .unwrap();
-        experiment.profile.scale_pose_errors(0.0);
+        experiment.profile_mut().scale_pose_errors(0.0);
         let run = simulate(&experiment, 1, |_| {}).unwrap();
         let offset = experiment.map_offset(1);
         let registered = registered_truth(&experiment, &run.truth, 0.01, &offset);
@@ -453,14 +453,14 @@ mod tests {
             "/experiments/quickstart.toml"
         )))
         .unwrap();
-        experiment.map.beam_pooling = crate::mapping::pooling::Pooling::Windows;
+        experiment.map_mut().beam_pooling = crate::mapping::pooling::Pooling::Windows;
         let run = simulate(&experiment, 1, |_| {}).unwrap();
         let view = experiment.mapper_view();
         let (scan, truth) = (&run.scans[0], &run.truth.scans[0]);
-        let ranges = measured_ranges(&view, &experiment.scanner.layout, scan).unwrap();
+        let ranges = measured_ranges(&view, &experiment.scanner().layout, scan).unwrap();
         let chain = scan_chain(scan);
         let blind = propagator(Method::Blind, &chain, view.sigma_set).unwrap();
-        let directions = experiment.scanner.directions();
+        let directions = experiment.scanner().directions();
         let pairs = errors_against_truth(view.range, directions, truth, &ranges, blind.as_ref());
         let hits: Vec<_> = ranges
             .iter()

@@ -119,20 +119,20 @@ struct ScanManifest<'a> {
 pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> Result<()> {
     let truth_dir = dir.join("truth");
     std::fs::create_dir_all(&truth_dir).map_err(|e| Error::io(&truth_dir, e))?;
-    let scanner = &experiment.scanner;
+    let scanner = &experiment.scanner();
     let manifest = ScanManifest {
-        experiment: &experiment.name,
+        experiment: experiment.name(),
         seed: run.seed,
-        scene: &experiment.scene.name,
-        robot: &experiment.robot.name,
-        error_profile: &experiment.profile.name,
+        scene: &experiment.scene().name,
+        robot: &experiment.robot().name,
+        error_profile: &experiment.profile().name,
         viewpoints: run.scans.len(),
         beams_per_viewpoint: scanner.directions().len(),
         rows: scanner.rows,
         columns: scanner.columns,
         min_range: scanner.min_range,
         max_range: scanner.max_range,
-        range: &experiment.profile.range,
+        range: &experiment.profile().range,
     };
     let manifest = format!(
         "# sigmap {} scan set; see docs/files.md, \"Scan files\".\n{}",
@@ -161,7 +161,7 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
     let summary_path = dir.join("viewpoints.csv");
     let mut summary =
         csv::Writer::from_path(&summary_path).map_err(|e| Error::io(&summary_path, e.into()))?;
-    let dof = experiment.arm.dof();
+    let dof = experiment.arm().dof();
     let mut header: Vec<String> = vec!["viewpoint".into(), "request".into()];
     header.extend((1..=dof).map(|j| format!("joint_{j}")));
     header.extend(["hits", "no_return", "too_close", "dropout"].map(String::from));
@@ -179,7 +179,7 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
         };
         let mut row = vec![
             scan.viewpoint.to_string(),
-            experiment.viewpoints[scan.viewpoint].request.clone(),
+            experiment.viewpoints()[scan.viewpoint].request.clone(),
         ];
         row.extend(scan.joints.iter().map(|q| format!("{q:?}")));
         row.extend(
@@ -342,7 +342,7 @@ pub fn read_ply(path: &Path) -> Result<([f64; 3], Vec<[f64; 3]>)> {
 /// The default output folder of `sigmap simulate`.
 pub fn default_scan_dir(experiment: &Experiment) -> PathBuf {
     PathBuf::from("results")
-        .join(&experiment.name)
+        .join(experiment.name())
         .join("scans")
 }
 

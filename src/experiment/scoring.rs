@@ -57,14 +57,14 @@ pub fn score_external(
     map: &Octree,
     name: &str,
 ) -> Result<RunRow> {
-    check_map_resolution(map, experiment.resolution, "the experiment's")?;
+    check_map_resolution(map, experiment.resolution(), "the experiment's")?;
     let run = simulate(experiment, seed, |_| {})?;
     let offset = experiment.map_offset(seed);
     let observable = observable(experiment, &run.truth.scans, &offset);
     let truth = ground_truth(experiment, seed);
-    let cell = Experiment::cell_label(&experiment.cell);
+    let cell = Experiment::cell_label(experiment.cell());
     let mut row = row_of(map, &truth, &observable, (cell, seed, name));
-    row.resolution = experiment.resolution;
+    row.resolution = experiment.resolution();
     Ok(row)
 }
 

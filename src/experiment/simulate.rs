@@ -42,41 +42,41 @@ pub fn simulate(
     mut progress: impl FnMut(usize),
 ) -> Result<SimulatedRun> {
     let streams = Streams::new(seed);
-    let profile = &experiment.profile;
+    let profile = &experiment.profile();
     let world_from_scene = UncertainPose {
-        mean: experiment.world_from_scene,
+        mean: experiment.world_from_scene(),
         covariance: profile.world_from_scene,
     };
     let robot_from_camera = UncertainPose {
-        mean: experiment.robot_from_camera,
+        mean: experiment.robot_from_camera(),
         covariance: profile.robot_from_camera,
     };
     let mut run_rng = streams.rng(Stream::Run);
     let true_world_from_scene = draw_pose(&world_from_scene, &mut run_rng).to_isometry();
     let true_robot_from_camera = draw_pose(&robot_from_camera, &mut run_rng).to_isometry();
-    let mut scans = Vec::with_capacity(experiment.viewpoints.len());
-    let mut true_arm = Vec::with_capacity(experiment.viewpoints.len());
-    let mut true_scans = Vec::with_capacity(experiment.viewpoints.len());
-    for (index, viewpoint) in experiment.viewpoints.iter().enumerate() {
+    let mut scans = Vec::with_capacity(experiment.viewpoints().len());
+    let mut true_arm = Vec::with_capacity(experiment.viewpoints().len());
+    let mut true_scans = Vec::with_capacity(experiment.viewpoints().len());
+    for (index, viewpoint) in experiment.viewpoints().iter().enumerate() {
         let mut rng = streams.rng(Stream::Viewpoint(index as u32));
         let arm = draw_arm(
             &profile.arm,
-            &experiment.arm,
-            &experiment.world_from_base,
+            experiment.arm(),
+            &experiment.world_from_base(),
             &viewpoint.joints,
             &mut rng,
         )
         .map_err(|e| {
             Error::input(
-                &experiment.source,
+                experiment.source(),
                 format!("viewpoint {index} ({}): {e}", viewpoint.request),
             )
         })?;
         let scene_from_camera =
             true_world_from_scene.inverse() * arm.truth * true_robot_from_camera;
         let (measurements, beams) = cast_beams(
-            &experiment.scene,
-            &experiment.scanner,
+            experiment.scene(),
+            experiment.scanner(),
             &profile.range,
             &scene_from_camera,
             &streams,

@@ -122,7 +122,7 @@ fn recorded_scans_map_as_the_simulated_scans_do() {
     let view = experiment.mapper_view();
     let offset = Vector3::zeros();
     let nodes = scan_nodes(&view, &run.scans, &offset);
-    let mut profile = experiment.profile.clone();
+    let mut profile = experiment.profile().clone();
     profile.world_from_scene = Matrix6::zeros();
     profile.robot_from_camera = Matrix6::zeros();
     profile.arm = ArmError::Pose(Matrix6::zeros());
@@ -131,17 +131,18 @@ fn recorded_scans_map_as_the_simulated_scans_do() {
     // beam is pooled with the same neighbours.
     let mut experiment = experiment;
     for pooling in [Pooling::Off, Pooling::Faces, Pooling::Windows] {
-        experiment.map.beam_pooling = pooling;
+        experiment.map_mut().beam_pooling = pooling;
         let view = experiment.mapper_view();
         for method in [Method::RayUpdate, Method::Unscented] {
             let ours = build_map(&view, &run.scans, method, resolution, &offset).unwrap();
             let options = RecordedOptions {
                 method,
                 resolution,
-                max_range: Some(experiment.scanner.max_range),
+                max_range: Some(experiment.scanner().max_range),
                 angular_step: None,
             };
-            let theirs = map_recorded(&nodes, &profile, &experiment.map, &options, |_| {}).unwrap();
+            let theirs =
+                map_recorded(&nodes, &profile, experiment.map(), &options, |_| {}).unwrap();
             let (mut cells, mut differ) = (0usize, 0usize);
             ours.visit_leaves(|leaf| {
                 cells += 1;
@@ -165,7 +166,7 @@ fn recorded_scans_map_as_the_simulated_scans_do() {
         max_range: None,
         angular_step: Some(0.5f64.to_radians()),
     };
-    map_recorded(&nodes, &profile, &experiment.map, &options, |k| {
+    map_recorded(&nodes, &profile, experiment.map(), &options, |k| {
         seen.lock().unwrap().push(k);
     })
     .unwrap();
@@ -175,13 +176,13 @@ fn recorded_scans_map_as_the_simulated_scans_do() {
 #[test]
 fn a_profile_with_joint_errors_is_refused() {
     let experiment = quickstart();
-    assert!(matches!(experiment.profile.arm, ArmError::Joints(_)));
+    assert!(matches!(experiment.profile().arm, ArmError::Joints(_)));
     let node = ScanNode {
         id: 0,
         map_from_sensor: crate::geometry::Isometry3::identity(),
         points: vec![Point3::new(0.0, 0.0, 1.0)],
     };
-    let err = node_chain(&node, &experiment.profile)
+    let err = node_chain(&node, experiment.profile())
         .unwrap_err()
         .to_string();
     assert!(
@@ -203,7 +204,7 @@ fn pooling_a_cloud_needs_one_point_per_bin() {
     let experiment = quickstart();
     let settings = MapSettings {
         beam_pooling: Pooling::Faces,
-        ..experiment.map
+        ..*experiment.map()
     };
     let exact = UncertainPose::from_sigmas(Pose::identity(), [0.0; 6]);
     let scan = Scan {
@@ -224,7 +225,7 @@ fn pooling_a_cloud_needs_one_point_per_bin() {
         let layout = node_layout(&node, step.map(f64::to_radians)).unwrap();
         let view = MapperView {
             layouts: Layouts::PerScan(std::slice::from_ref(&layout)),
-            range: &experiment.profile.range,
+            range: &experiment.profile().range,
             max_range: f64::INFINITY,
             settings: &settings,
             sigma_set: SigmaSet::Paper,

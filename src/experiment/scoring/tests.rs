@@ -12,7 +12,7 @@ use std::path::Path;
 fn exact_quickstart(dir: &Path) -> Experiment {
     let exact = "[range]\nsigma0 = 0.0\nk = 0.0\nangular_sigma = 0.0\ndropout = 0.0\n";
     let experiment = quickstart_with_profile(dir, exact, "");
-    assert!(experiment.grid_offset);
+    assert!(experiment.grid_offset());
     experiment
 }
 
@@ -32,13 +32,13 @@ fn an_exact_run_scored_against_its_scene_and_scans_gives_the_run_row() {
     let view = experiment.mapper_view();
     let nodes = scan_nodes(&view, &run.scans, &offset);
     let map_from_scene = Isometry3::translation(offset.x, offset.y, offset.z);
-    for ((method, map), run_row) in experiment.methods.iter().zip(&maps).zip(&rows) {
+    for ((method, map), run_row) in experiment.methods().iter().zip(&maps).zip(&rows) {
         let row = score_against_scene(
             map,
-            &experiment.scene,
+            experiment.scene(),
             &map_from_scene,
             &nodes,
-            Some(experiment.scanner.max_range),
+            Some(experiment.scanner().max_range),
             method.as_str(),
         )
         .unwrap();
@@ -69,16 +69,16 @@ fn an_exact_run_scored_against_its_scene_and_scans_gives_the_run_row() {
     // A wrong scene pose moves the truth: the scores change.
     let moved = map_from_scene * Isometry3::translation(0.03, 0.0, 0.0);
     let ray_update = experiment
-        .methods
+        .methods()
         .iter()
         .position(|m| *m == RunMethod::Own(Method::RayUpdate))
         .unwrap();
     let row = score_against_scene(
         &maps[ray_update],
-        &experiment.scene,
+        experiment.scene(),
         &moved,
         &nodes,
-        Some(experiment.scanner.max_range),
+        Some(experiment.scanner().max_range),
         "ray_update",
     )
     .unwrap();

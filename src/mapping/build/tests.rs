@@ -114,8 +114,8 @@ fn without_shared_error_the_correlated_map_is_the_unscented_map() {
         unscented, correlated,
         "the shared error is accounted differently"
     );
-    experiment.profile.world_from_scene = Matrix6::zeros();
-    experiment.profile.robot_from_camera = Matrix6::zeros();
+    experiment.profile_mut().world_from_scene = Matrix6::zeros();
+    experiment.profile_mut().robot_from_camera = Matrix6::zeros();
     let (unscented, correlated) = maps(&experiment);
     assert_eq!(unscented, correlated);
 }
@@ -146,10 +146,10 @@ fn pooling_narrows_most_hits_and_only_when_asked() {
     let scan = &run.scans[0];
     let along = |e: &Experiment| -> Vec<(f64, f64)> {
         let view = e.mapper_view();
-        measured_ranges(&view, &e.scanner.layout, scan)
+        measured_ranges(&view, &e.scanner().layout, scan)
             .unwrap()
             .iter()
-            .zip(e.scanner.directions())
+            .zip(e.scanner().directions())
             .filter_map(|(p, d)| {
                 let p = surface_point(view.range, d, p.as_ref()?);
                 Some((
@@ -159,10 +159,11 @@ fn pooling_narrows_most_hits_and_only_when_asked() {
             })
             .collect()
     };
-    let sigma = |r: f64| experiment.profile.range.sigma(r);
+    let range = experiment.profile().range;
+    let sigma = |r: f64| range.sigma(r);
     let raw = along(&experiment);
     assert!(raw.iter().all(|(r, s)| (s - sigma(*r)).abs() < 1e-12));
-    experiment.map.beam_pooling = Pooling::Windows;
+    experiment.map_mut().beam_pooling = Pooling::Windows;
     let pooled = along(&experiment);
     assert_eq!(pooled.len(), raw.len());
     let narrowed = pooled.iter().filter(|(r, s)| *s < 0.6 * sigma(*r)).count();
@@ -180,11 +181,11 @@ fn maps_draw_pooled_beams_without_the_slide_and_the_nees_keeps_it() {
     // range's own (the plane's prediction), not the hit's, which adds
     // the slide r σ_a tan θ on a slanted plane.
     let mut experiment = quickstart();
-    experiment.map.beam_pooling = Pooling::Windows;
+    experiment.map_mut().beam_pooling = Pooling::Windows;
     let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
     let view = experiment.mapper_view();
     let scan = &run.scans[0];
-    let measured = measured_ranges(&view, &experiment.scanner.layout, scan).unwrap();
+    let measured = measured_ranges(&view, &experiment.scanner().layout, scan).unwrap();
     let all = [measured.clone()];
     let extras = BuildExtras {
         measured: Some(&all),
@@ -195,7 +196,7 @@ fn maps_draw_pooled_beams_without_the_slide_and_the_nees_keeps_it() {
     let (mut pooled, mut slanted) = (0, 0);
     for (k, (p, d)) in measured
         .iter()
-        .zip(experiment.scanner.directions())
+        .zip(experiment.scanner().directions())
         .enumerate()
     {
         let Some(p) = p else { continue };
@@ -237,18 +238,18 @@ fn the_ray_update_ends_its_rays_at_the_pooled_points() {
         .leaves()
     };
     let raw = ray_map(&experiment);
-    experiment.map.beam_pooling = Pooling::Faces;
+    experiment.map_mut().beam_pooling = Pooling::Faces;
     let view = experiment.mapper_view();
     // OctoMap's update, scan by scan, of rays ending at the pooled points.
     let mut expected = Octree::new(resolution);
     for scan in &run.scans {
-        let points = measured_ranges(&view, &experiment.scanner.layout, scan).unwrap();
+        let points = measured_ranges(&view, &experiment.scanner().layout, scan).unwrap();
         let pose = scan.chain.scene_from_camera();
         let (mut hits, mut misses) = (Vec::new(), Vec::new());
         for ((m, d), p) in scan
             .measurements
             .iter()
-            .zip(experiment.scanner.directions())
+            .zip(experiment.scanner().directions())
             .zip(&points)
         {
             match m.status {
@@ -276,7 +277,7 @@ fn the_ray_update_ends_its_rays_at_the_pooled_points() {
     let measured: Vec<_> = run
         .scans
         .iter()
-        .map(|s| measured_ranges(&view, &experiment.scanner.layout, s).unwrap())
+        .map(|s| measured_ranges(&view, &experiment.scanner().layout, s).unwrap())
         .collect();
     let extras = BuildExtras {
         measured: Some(&measured),
@@ -312,7 +313,7 @@ fn the_experiments_sigma_set_reaches_the_maps() {
     let blind = map(&experiment, Method::Blind);
     // α = 1, β = κ = 0 is the paper's set: λ = 0, the same spread √n
     // and weights 1/2n, a centre point of weight 0.
-    experiment.sigma_set = SigmaSet::Scaled {
+    *experiment.sigma_set_mut() = SigmaSet::Scaled {
         alpha: 1.0,
         beta: 0.0,
         kappa: 0.0,
@@ -320,7 +321,7 @@ fn the_experiments_sigma_set_reaches_the_maps() {
     assert!(map(&experiment, Method::Unscented) == paper);
     // A narrower set with β = 2 weighs the centre point: another map,
     // and only for the sigma-point methods.
-    experiment.sigma_set = SigmaSet::Scaled {
+    *experiment.sigma_set_mut() = SigmaSet::Scaled {
         alpha: 0.5,
         beta: 2.0,
         kappa: 0.0,

@@ -1,0 +1,345 @@
+//! Loading an experiment, step by step: the sweep cell's values, the
+//! files it names, and every check, so that an [`Experiment`] that exists
+//! is one that was checked ([`Experiment::load_with`]).
+
+use super::file::{ExperimentFile, MountSpec};
+use super::*;
+use crate::mapping::Method;
+use crate::sim::robot::KinematicChain;
+
+/// A sweep cell's values, by the file they change (experiment, profile,
+/// scene), and its pose-error scale.
+struct SweptValues {
+    by_file: [Vec<(String, toml::Value)>; 3],
+    pose_scale: Option<f64>,
+}
+
+impl SweptValues {
+    /// Sorts `cell`'s values by file; errors name the experiment file.
+    fn of(path: &Path, cell: &[(String, SweepValue)]) -> Result<Self> {
+        let mut out = Self {
+            by_file: Default::default(),
+            pose_scale: None,
+        };
+        let bad = |msg: String| Error::input(path, msg);
+        for (field, value) in cell {
+            if let SweepValue::Number(v) = value {
+                if !v.is_finite() {
+                    return Err(bad(format!(
+                        "sweep field '{field}': value {v} is not finite"
+                    )));
+                }
+            }
+            let target = [("experiment.", 0), ("profile.", 1), ("scene.", 2)]
+                .iter()
+                .find_map(|(prefix, i)| field.strip_prefix(prefix).map(|rest| (*i, rest)));
+            match (field.as_str(), target) {
+                ("pose_error_scale", _) => match value {
+                    SweepValue::Number(v) if *v >= 0.0 => out.pose_scale = Some(*v),
+                    _ => {
+                        return Err(bad(format!(
+                            "pose_error_scale = {value} must be a number >= 0"
+                        )))
+                    }
+                },
+                (_, Some((i, rest))) => out.by_file[i].push((rest.to_string(), value.to_toml())),
+                _ => {
+                    return Err(bad(format!(
+                        "unknown sweep field '{field}' (use pose_error_scale, experiment.<path>, \
+                         profile.<path> or scene.<path>)"
+                    )))
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// The error profile at `path` with the cell's values and pose scale,
+    /// its pose errors checked.
+    fn profile(&self, path: &Path) -> Result<ErrorProfile> {
+        let mut profile = ErrorProfile::load_with(path, &self.by_file[1])?;
+        if let Some(scale) = self.pose_scale {
+            profile.scale_pose_errors(scale);
+        }
+        let what = match self.pose_scale {
+            Some(scale) => format!("at pose_error_scale = {scale:e}"),
+            None => "the profile".into(),
+        };
+        profile
+            .check_pose_magnitudes(&what)
+            .map_err(|e| Error::input(&profile.source, e))?;
+        Ok(profile)
+    }
+}
+
+/// Every sweep axis has values, none twice, and no field is swept twice.
+fn check_sweep_axes(sweeps: &[SweepAxis]) -> std::result::Result<(), String> {
+    for (i, axis) in sweeps.iter().enumerate() {
+        if axis.values.is_empty() {
+            return Err(format!("[[sweep]] '{}' has no values", axis.field));
+        }
+        if sweeps[..i].iter().any(|a| a.field == axis.field) {
+            return Err(format!("[[sweep]] '{}' is swept twice", axis.field));
+        }
+        let labels: Vec<String> = axis.values.iter().map(ToString::to_string).collect();
+        if let Some(label) = first_repeat(&labels) {
+            return Err(format!(
+                "[[sweep]] '{}' lists the value {label} more than once",
+                axis.field
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// How the robot carries the sensor and stands in the world, with the
+/// scene: the arm and sensor chains, T_cr, the base and T_sw.
+struct Mount {
+    arm: KinematicChain,
+    sensor_chain: KinematicChain,
+    robot_from_camera: Pose,
+    world_from_base: Isometry3,
+    world_from_scene: Pose,
+}
+
+impl Mount {
+    /// The mount of `robot` as the file's `[robot]` and `[world_from_scene]`
+    /// say; a joint error per joint must match the arm's joints.
+    fn of(
+        robot: &Robot,
+        mount: &MountSpec,
+        file: &ExperimentFile,
+        profile: &ErrorProfile,
+        path: &Path,
+    ) -> Result<Self> {
+        let bad = |msg: String| Error::input(path, msg);
+        let arm = robot.chain(&mount.base_link, &mount.flange_link)?;
+        let sensor_chain = robot.chain(&mount.base_link, &mount.sensor_link)?;
+        let mount_chain = robot.chain(&mount.flange_link, &mount.sensor_link)?;
+        if mount_chain.dof() != 0 {
+            return Err(bad(format!(
+                "[robot] the joints between '{}' and '{}' must all be fixed: they are the \
+                 sensor mount T_cr",
+                mount.flange_link, mount.sensor_link
+            )));
+        }
+        if let crate::sim::profile::ArmError::Joints(s) = &profile.arm {
+            if s.len() != arm.dof() {
+                return Err(Error::input(
+                    &profile.source,
+                    format!(
+                        "[world_from_robot] joint_sigma has {} values, the arm '{}' has {} joints",
+                        s.len(),
+                        robot.name,
+                        arm.dof()
+                    ),
+                ));
+            }
+        }
+        let base = Pose::new(mount.xyz, mount.rpy);
+        let world_from_scene = Pose::new(file.world_from_scene.xyz, file.world_from_scene.rpy);
+        if !base.is_finite() || !world_from_scene.is_finite() {
+            return Err(bad(
+                "[robot] and [world_from_scene] poses must be finite".into()
+            ));
+        }
+        Ok(Self {
+            robot_from_camera: Pose::from_isometry(&mount_chain.forward_unchecked(&[])),
+            arm,
+            sensor_chain,
+            world_from_base: base.to_isometry(),
+            world_from_scene,
+        })
+    }
+}
+
+/// The map settings of the file with the overrides applied.
+fn map_settings(
+    file: &ExperimentFile,
+    overrides: &Overrides,
+) -> std::result::Result<MapSettings, String> {
+    let pooling = match overrides.beam_pooling {
+        Some(pooling) => pooling,
+        None => file.beam_pooling.pooling()?,
+    };
+    let mut map = MapSettings::new(&file.map, file.risk, pooling)?;
+    map.interpolate_beams = match overrides.interpolate_beams {
+        Some(on) => on,
+        None => file.interpolate_beams.on("interpolate_beams")?,
+    };
+    Ok(map)
+}
+
+/// The seeds of `sigmap run`: at most [`MAX_SEEDS`], none twice.
+fn seeds_of(file: &ExperimentFile, seed: u64) -> std::result::Result<Vec<u64>, String> {
+    let seeds = match &file.seeds {
+        Some(spec) => spec.seeds(MAX_SEEDS as u64)?,
+        None => vec![seed],
+    };
+    if seeds.len() > MAX_SEEDS {
+        return Err(format!(
+            "`seeds` lists {} seeds; sigmap runs at most {MAX_SEEDS} seeds per experiment",
+            seeds.len()
+        ));
+    }
+    if seeds.is_empty() {
+        return Err("`seeds` is empty".into());
+    }
+    if let Some(seed) = first_repeat(&seeds) {
+        return Err(format!("`seeds` lists {seed} more than once"));
+    }
+    Ok(seeds)
+}
+
+/// sigmap's own methods (the overrides', else the file's, else blind,
+/// unscented and ray update), none twice.
+fn own_methods(
+    file: &ExperimentFile,
+    overrides: &Overrides,
+) -> std::result::Result<Vec<Method>, String> {
+    let methods = match (&overrides.methods, &file.methods) {
+        (Some(methods), _) => methods.clone(),
+        (None, None) => vec![Method::Blind, Method::Unscented, Method::RayUpdate],
+        (None, Some(names)) => names
+            .iter()
+            .map(|n| n.parse())
+            .collect::<std::result::Result<_, _>>()?,
+    };
+    if methods.is_empty() {
+        return Err("`methods` is empty".into());
+    }
+    if let Some(method) = first_repeat(&methods) {
+        return Err(format!("`methods` lists {method} more than once"));
+    }
+    Ok(methods)
+}
+
+/// `own` then the file's `[[mapper]]` tables (their programs relative to
+/// `folder`), each name new.
+fn with_mappers(
+    own: &[Method],
+    mappers: Vec<crate::experiment::external::MapperSpec>,
+    folder: &Path,
+) -> std::result::Result<Vec<RunMethod>, String> {
+    let mut methods: Vec<RunMethod> = own.iter().copied().map(RunMethod::Own).collect();
+    for spec in mappers {
+        let taken: Vec<&str> = Method::ALL
+            .iter()
+            .map(|m| m.as_str())
+            .chain(methods.iter().map(RunMethod::as_str))
+            .collect();
+        let mapper = spec.check(folder, &taken)?;
+        methods.push(RunMethod::External(std::sync::Arc::new(mapper)));
+    }
+    Ok(methods)
+}
+
+/// The file's scanner, checked against the viewpoints' beam budget, the
+/// sample budget and (for methods that build grids) the clearing bound at
+/// `resolution`.
+fn checked_scanner(
+    file: &ExperimentFile,
+    map: &MapSettings,
+    builds_grids: bool,
+    resolution: f64,
+) -> std::result::Result<Scanner, String> {
+    let scanner = file.sensor.build()?;
+    let viewpoints = file.viewpoints.len();
+    if viewpoints == 0 {
+        return Err("the experiment has no [[viewpoint]]".into());
+    }
+    let per_viewpoint = scanner.directions().len();
+    let beams = per_viewpoint as f64 * viewpoints as f64;
+    if viewpoints > MAX_VIEWPOINTS || beams > MAX_BEAMS_PER_RUN {
+        return Err(format!(
+            "{viewpoints} viewpoints x {per_viewpoint} beams = {beams:.3e} beams per run; sigmap \
+             handles at most {MAX_VIEWPOINTS} viewpoints and {MAX_BEAMS_PER_RUN:.0} beams per run \
+             (use fewer viewpoints or larger sensor steps)"
+        ));
+    }
+    if map.interpolate_beams {
+        check_sample_budget(per_viewpoint as f64)?;
+    }
+    if builds_grids {
+        scanner.check_clearing(resolution)?;
+    }
+    Ok(scanner)
+}
+
+impl Experiment {
+    /// Reads the experiment with one sweep cell's values and `overrides`
+    /// applied, and checks everything: the values an override gives are
+    /// checked as the file's. Every error names its file.
+    pub fn load_with(
+        path: &Path,
+        cell: &[(String, SweepValue)],
+        overrides: &Overrides,
+    ) -> Result<Self> {
+        let swept = SweptValues::of(path, cell)?;
+        let file: ExperimentFile = read_toml_with(path, &swept.by_file[0])?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let bad = |msg: String| Error::input(path, msg);
+        let scene = Scene::load_with(&dir.join(&file.scene), &swept.by_file[2])?;
+        let profile = swept.profile(&dir.join(&file.error_profile))?;
+        check_sweep_axes(&file.sweeps).map_err(&bad)?;
+        let robot = Robot::load(&dir.join(&file.robot.urdf))?;
+        let mount = Mount::of(&robot, &file.robot, &file, &profile, path)?;
+        let resolution = overrides.resolution.unwrap_or(file.resolution);
+        if !crate::mapping::octree::RESOLUTIONS.contains(&resolution) {
+            return Err(bad(format!(
+                "resolution = {resolution} must be between 0.001 and 1 m"
+            )));
+        }
+        let map = map_settings(&file, overrides).map_err(&bad)?;
+        let sigma_set = match &file.unscented {
+            Some(spec) => SigmaSet::scaled(spec.alpha, spec.beta, spec.kappa)
+                .map_err(|e| bad(format!("[unscented] {e}")))?,
+            None => SigmaSet::Paper,
+        };
+        let seed = overrides.seed.unwrap_or(file.seed);
+        let seeds = seeds_of(&file, seed).map_err(&bad)?;
+        let own = own_methods(&file, overrides).map_err(&bad)?;
+        let builds_grids = own.iter().any(|m| m.builds_grids());
+        let scanner = checked_scanner(&file, &map, builds_grids, resolution).map_err(&bad)?;
+        crate::eval::ground_truth::check_resolution(&scene, resolution)?;
+        let methods = with_mappers(&own, file.mappers, dir).map_err(&bad)?;
+        // With the methods overridden (`sigmap map --method`) the file's
+        // reference counts only if it is still among them.
+        let named = file.reference.as_deref().filter(|name| {
+            overrides.methods.is_none() || methods.iter().any(|m| m.as_str() == *name)
+        });
+        let reference = reference_method(named, &methods).map_err(&bad)?;
+        let mut experiment = Self {
+            name: file.name.unwrap_or_else(|| crate::sim::scene::stem(path)),
+            description: file.description,
+            source: path.to_path_buf(),
+            seed,
+            resolution,
+            grid_offset: overrides.grid_offset.unwrap_or(file.grid_offset),
+            map,
+            sigma_set,
+            seeds,
+            methods,
+            reference,
+            scene,
+            robot,
+            arm: mount.arm,
+            sensor_chain: mount.sensor_chain,
+            robot_from_camera: mount.robot_from_camera,
+            world_from_base: mount.world_from_base,
+            world_from_scene: mount.world_from_scene,
+            scanner,
+            profile,
+            viewpoints: Vec::new(),
+            sweep: file.sweeps,
+            cell: cell.to_vec(),
+        };
+        for (index, spec) in file.viewpoints.iter().enumerate() {
+            let viewpoint = experiment
+                .resolve(index, spec)
+                .map_err(|e| e.context(format!("viewpoint {index}: ")))?;
+            experiment.viewpoints.push(viewpoint);
+        }
+        Ok(experiment)
+    }
+}
