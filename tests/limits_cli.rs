@@ -242,7 +242,11 @@ fn absurd_sizes_are_refused_before_any_work() {
         "cores",
     );
     refused(&["run", q, "--seed", "7"], "--seed 7", "does not apply");
-    refused(&["submit", q, "--tasks", "0"], "--tasks 0", "between 1 and");
+    refused(
+        &["submit", q, "--tasks", "0"],
+        "--tasks",
+        "between 1 and 10000 tasks",
+    );
 }
 
 #[test]

@@ -104,8 +104,8 @@ enum Command {
 pub(crate) struct SubmitArgs {
     /// The experiment file (TOML).
     experiment: PathBuf,
-    /// Number of array tasks (shards).
-    #[arg(long, default_value_t = 1)]
+    /// Number of array tasks (shards), 1 to 10000.
+    #[arg(long, default_value_t = 1, value_parser = parse_tasks)]
     tasks: usize,
     /// Results folder on the shared filesystem [default: results/<experiment>].
     #[arg(long)]
@@ -421,6 +421,17 @@ pub(crate) fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send
 }
 
 /// A `--resolution` argument, checked against [`RESOLUTIONS`](crate::mapping::octree::RESOLUTIONS).
+/// `--tasks`: between 1 and [`crate::experiment::cluster::MAX_TASKS`].
+fn parse_tasks(text: &str) -> std::result::Result<usize, String> {
+    let max = crate::experiment::cluster::MAX_TASKS;
+    match text.parse::<usize>() {
+        Ok(n) if (1..=max).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "{text}: a submission has between 1 and {max} tasks"
+        )),
+    }
+}
+
 pub(crate) fn resolution_arg(resolution: f64) -> Result<f64> {
     if crate::mapping::octree::RESOLUTIONS.contains(&resolution) {
         Ok(resolution)
@@ -450,7 +461,18 @@ pub fn main() -> i32 {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
-            let _ = e.print();
+            use clap::error::ErrorKind;
+            // A bad value is one line naming the flag and what is wrong;
+            // other usage errors keep clap's usage lines.
+            if matches!(
+                e.kind(),
+                ErrorKind::ValueValidation | ErrorKind::InvalidValue
+            ) {
+                let text = e.render().to_string();
+                eprintln!("{}", text.lines().next().unwrap_or_default());
+            } else {
+                let _ = e.print();
+            }
             return if e.use_stderr() { 2 } else { 0 };
         }
     };

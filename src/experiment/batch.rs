@@ -12,6 +12,7 @@ use super::RunMethod;
 use super::{plots, report};
 use crate::error::{Error, Result};
 use crate::mapping::octomap_io::write_octree;
+use crate::mapping::Octree;
 use rayon::prelude::*;
 use std::collections::BTreeSet;
 use std::io::Write;
@@ -61,147 +62,48 @@ pub fn run_experiment(
     pending_runs: impl FnOnce(usize),
     finished: impl Fn() + Sync,
 ) -> Result<RunOutcome> {
-    let experiment = Experiment::load(path)?;
-    // Every cell is loaded (and so checked) before any run starts.
-    let cells: Vec<Experiment> = experiment
-        .cells()
-        .iter()
-        .map(|cell| Experiment::load_cell(path, cell))
-        .collect::<Result<_>>()?;
-    let labels: Vec<String> = cells
-        .iter()
-        .map(|c| Experiment::cell_label(c.cell()))
-        .collect();
+    let (experiment, cells, labels) = load_cells(path)?;
     let out = results_dir(&experiment, options.out.as_deref());
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let _lock = crate::files::RunLock::acquire(&out)?;
-    let runs_path = out.join("runs.csv");
-    let journal_path = out.join("runs.journal.csv");
-    let timings_path = out.join("timings.csv");
     let inputs = fingerprint(&cells)?;
     let (shard, shards) = options.shard.unwrap_or((1, 1));
-    let manifest_path = out.join("run.toml");
     if options.fresh {
-        for p in [&runs_path, &journal_path, &timings_path] {
-            if p.exists() {
-                std::fs::remove_file(p).map_err(|e| Error::io(p, e))?;
-            }
-        }
-    } else if manifest_path.exists() {
-        // Never resume from results of other inputs.
-        let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
-        let same_shard = manifest.shard == format!("{shard}/{shards}");
-        let version = env!("CARGO_PKG_VERSION");
-        let what = if manifest.version != version {
-            Some(format!(
-                "sigmap {} wrote them, this is {version}",
-                manifest.version
-            ))
-        } else if !same_shard {
-            Some(format!(
-                "they are shard {}, not {shard}/{shards}",
-                manifest.shard
-            ))
-        } else if manifest.fingerprint != inputs.fingerprint {
-            let recorded: Vec<(String, String)> = manifest.inputs.into_iter().collect();
-            let changed = inputs.changed_since(&recorded);
-            Some(if changed.is_empty() {
-                "the sweep cells changed".to_string()
-            } else {
-                format!("changed since: {}", changed.join(", "))
-            })
-        } else {
-            None
-        };
-        if let Some(what) = what {
-            return Err(Error::input(
-                &manifest_path,
-                format!(
-                    "this folder holds results of other inputs ({what}); rerun with --fresh to \
-                     replace them, or choose another --out"
-                ),
-            ));
-        }
+        discard_results(&out)?;
+    } else {
+        check_same_inputs(&out, &inputs, (shard, shards))?;
     }
-    // Finished runs: the sorted file and the journal of an interrupted run.
-    // A run counts only with a row for every method; rows of runs, methods or
-    // cells the experiment does not have are dropped, and so are repeats.
     let wanted = Wanted {
         cells: &labels,
         seeds: experiment.seeds(),
         methods: experiment.methods(),
     };
-    let mut rows: Vec<RunRow> = read_rows(&runs_path)?;
-    let (journal_rows, journal_timings) = read_journal(&journal_path)?;
-    rows.extend(journal_rows);
-    wanted.keep(&mut rows);
-    let done = wanted.complete(&rows);
-    rows.retain(|r| done.contains(&(r.cell.clone(), r.seed)));
-    let mut timings: Vec<TimingRow> = read_rows(&timings_path)?;
-    timings.extend(journal_timings);
-    wanted.keep(&mut timings);
-    timings.retain(|t| done.contains(&(t.cell.clone(), t.seed)));
-    let mine = shard_runs(cells.len(), experiment.seeds(), shard, shards);
-    let pending: Vec<(usize, u64)> = mine
-        .iter()
-        .copied()
+    let Finished {
+        mut rows,
+        mut timings,
+        done,
+    } = finished_rows(&out, &wanted)?;
+    let pending: Vec<(usize, u64)> = shard_runs(cells.len(), experiment.seeds(), shard, shards)
+        .into_iter()
         .filter(|(c, s)| !done.contains(&(labels[*c].clone(), *s)))
         .collect();
     write_manifest(&out, &experiment, &inputs, shard, shards)?;
     pending_runs(pending.len());
-    let journal = Mutex::new(
-        std::fs::OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(&journal_path)
-            .map_err(|e| Error::io(&journal_path, e))?,
-    );
-    let first_seed = experiment.seeds()[0];
-    let results = {
-        pending
-            .par_iter()
-            .map(|&(c, seed)| -> Result<(Vec<RunRow>, Vec<TimingRow>)> {
-                let truth = ground_truth(&cells[c], seed);
-                let (new_rows, new_timings, maps) = run_seed(&cells[c], &truth, seed)?;
-                if c == 0 && seed == first_seed {
-                    for (method, map) in experiment.methods().iter().zip(&maps) {
-                        let path = out.join(format!("map_{method}.bt"));
-                        write_octree(&path, map, cells[0].map().clamp())?;
-                    }
-                    let offset = cells[0].map_offset(seed);
-                    let workspace = &cells[0].scene().workspace;
-                    let workspace = crate::sim::scene::Bounds {
-                        min: workspace.min + offset,
-                        max: workspace.max + offset,
-                    };
-                    let pairs: Vec<_> = experiment
-                        .methods()
-                        .iter()
-                        .cloned()
-                        .zip(maps.iter())
-                        .collect();
-                    plots::plot_slice(
-                        &out.join("slice.svg"),
-                        &truth,
-                        &pairs,
-                        &workspace,
-                        plots::slice_height(&truth),
-                    )?;
-                }
-                // One record per finished run, so an interruption loses only
-                // unfinished runs; a record cut short is ignored when read.
-                let text = journal_record(&new_rows, &new_timings)?;
-                let mut file = journal
-                    .lock()
-                    .map_err(|_| Error::CheckFailed("journal lock poisoned".into()))?;
-                file.write_all(&text)
-                    .and_then(|_| file.sync_data())
-                    .map_err(|e| Error::io(&journal_path, e))?;
-                finished();
-                Ok((new_rows, new_timings))
-            })
-            .collect::<Vec<_>>()
-    };
+    let journal = Journal::open(&out.join(JOURNAL))?;
+    let first = (0, experiment.seeds()[0]);
+    let results: Vec<Result<(Vec<RunRow>, Vec<TimingRow>)>> = pending
+        .par_iter()
+        .map(|&(c, seed)| {
+            let truth = ground_truth(&cells[c], seed);
+            let (new_rows, new_timings, maps) = run_seed(&cells[c], &truth, seed)?;
+            if (c, seed) == first {
+                write_first_maps(&out, &cells[0], seed, &truth, &maps)?;
+            }
+            journal.append(&new_rows, &new_timings)?;
+            finished();
+            Ok((new_rows, new_timings))
+        })
+        .collect();
     for result in results {
         let (r, t) = result?;
         rows.extend(r);
@@ -210,7 +112,7 @@ pub fn run_experiment(
     let runs = rows.len();
     let (study, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
     write_report_with_slice(&out, &experiment, &study, &inputs, charts)?;
-    std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
+    journal.remove()?;
     Ok(RunOutcome {
         experiment,
         out,
@@ -218,6 +120,172 @@ pub fn run_experiment(
         paired: study.paired,
         runs,
     })
+}
+
+/// The journal of finished runs, beside runs.csv while a run is under way.
+const JOURNAL: &str = "runs.journal.csv";
+
+/// The experiment at `path` (its base cell), every sweep cell loaded (and
+/// so checked) before any run starts, and the cells' labels.
+fn load_cells(path: &Path) -> Result<(Experiment, Vec<Experiment>, Vec<String>)> {
+    let experiment = Experiment::load(path)?;
+    let cells: Vec<Experiment> = experiment
+        .cells()
+        .iter()
+        .map(|cell| Experiment::load_cell(path, cell))
+        .collect::<Result<_>>()?;
+    let labels = cells
+        .iter()
+        .map(|c| Experiment::cell_label(c.cell()))
+        .collect();
+    Ok((experiment, cells, labels))
+}
+
+/// `--fresh`: the folder's results of earlier runs, removed.
+fn discard_results(out: &Path) -> Result<()> {
+    for name in ["runs.csv", JOURNAL, "timings.csv"] {
+        let path = out.join(name);
+        if path.exists() {
+            std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// Refuses to resume from results of other inputs: another version,
+/// another shard, or files whose fingerprint changed (named).
+fn check_same_inputs(out: &Path, inputs: &Inputs, (shard, shards): (usize, usize)) -> Result<()> {
+    let manifest_path = out.join("run.toml");
+    if !manifest_path.exists() {
+        return Ok(());
+    }
+    let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
+    let version = env!("CARGO_PKG_VERSION");
+    let what = if manifest.version != version {
+        format!("sigmap {} wrote them, this is {version}", manifest.version)
+    } else if manifest.shard != format!("{shard}/{shards}") {
+        format!("they are shard {}, not {shard}/{shards}", manifest.shard)
+    } else if manifest.fingerprint != inputs.fingerprint {
+        let recorded: Vec<(String, String)> = manifest.inputs.into_iter().collect();
+        let changed = inputs.changed_since(&recorded);
+        if changed.is_empty() {
+            "the sweep cells changed".to_string()
+        } else {
+            format!("changed since: {}", changed.join(", "))
+        }
+    } else {
+        return Ok(());
+    };
+    Err(Error::input(
+        &manifest_path,
+        format!(
+            "this folder holds results of other inputs ({what}); rerun with --fresh to \
+             replace them, or choose another --out"
+        ),
+    ))
+}
+
+/// The finished runs of the folder: runs.csv and the journal of an
+/// interrupted run. A run counts only with a row for every method; rows of
+/// runs, methods or cells the experiment does not have are dropped, and so
+/// are repeats.
+fn finished_rows(out: &Path, wanted: &Wanted) -> Result<Finished> {
+    let mut rows: Vec<RunRow> = read_rows(&out.join("runs.csv"))?;
+    let (journal_rows, journal_timings) = read_journal(&out.join(JOURNAL))?;
+    rows.extend(journal_rows);
+    wanted.keep(&mut rows);
+    let done = wanted.complete(&rows);
+    rows.retain(|r| done.contains(&(r.cell.clone(), r.seed)));
+    let mut timings: Vec<TimingRow> = read_rows(&out.join("timings.csv"))?;
+    timings.extend(journal_timings);
+    wanted.keep(&mut timings);
+    timings.retain(|t| done.contains(&(t.cell.clone(), t.seed)));
+    Ok(Finished {
+        rows,
+        timings,
+        done,
+    })
+}
+
+/// The finished runs of a results folder.
+struct Finished {
+    /// Their runs.csv rows.
+    rows: Vec<RunRow>,
+    /// Their timings.
+    timings: Vec<TimingRow>,
+    /// Which they are: (cell label, seed).
+    done: BTreeSet<(String, u64)>,
+}
+
+/// The first run's maps (`map_<method>.bt`) and the slice through them and
+/// the truth (`slice.svg`).
+fn write_first_maps(
+    out: &Path,
+    cell: &Experiment,
+    seed: u64,
+    truth: &Octree,
+    maps: &[Octree],
+) -> Result<()> {
+    for (method, map) in cell.methods().iter().zip(maps) {
+        write_octree(
+            &out.join(format!("map_{method}.bt")),
+            map,
+            cell.map().clamp(),
+        )?;
+    }
+    let offset = cell.map_offset(seed);
+    let workspace = &cell.scene().workspace;
+    let workspace = crate::sim::scene::Bounds {
+        min: workspace.min + offset,
+        max: workspace.max + offset,
+    };
+    let pairs: Vec<_> = cell.methods().iter().cloned().zip(maps.iter()).collect();
+    plots::plot_slice(
+        &out.join("slice.svg"),
+        truth,
+        &pairs,
+        &workspace,
+        plots::slice_height(truth),
+    )
+}
+
+/// The journal a run appends each finished (cell, seed) to, as one record,
+/// so that an interruption loses only unfinished runs (a record cut short
+/// is ignored when read).
+struct Journal {
+    path: PathBuf,
+    file: Mutex<std::fs::File>,
+}
+
+impl Journal {
+    fn open(path: &Path) -> Result<Self> {
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .map_err(|e| Error::io(path, e))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            file: Mutex::new(file),
+        })
+    }
+
+    /// Appends one run's record and syncs it to disk.
+    fn append(&self, rows: &[RunRow], timings: &[TimingRow]) -> Result<()> {
+        let text = journal_record(rows, timings)?;
+        let mut file = self
+            .file
+            .lock()
+            .map_err(|_| Error::CheckFailed("journal lock poisoned".into()))?;
+        file.write_all(&text)
+            .and_then(|()| file.sync_data())
+            .map_err(|e| Error::io(&self.path, e))
+    }
+
+    /// Removes the journal once runs.csv holds every run.
+    fn remove(self) -> Result<()> {
+        std::fs::remove_file(&self.path).map_err(|e| Error::io(&self.path, e))
+    }
 }
 
 /// The runs of shard `shard` of `shards` (1-based): every n-th (cell index,

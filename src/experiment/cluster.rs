@@ -149,7 +149,7 @@ pub fn submit(
 ) -> Result<Submitted> {
     if !(1..=MAX_TASKS).contains(&tasks) {
         return Err(Error::Usage(format!(
-            "--tasks {tasks} must be between 1 and {MAX_TASKS}"
+            "{tasks} tasks: a submission has between 1 and {MAX_TASKS} tasks"
         )));
     }
     if Command::new("sbatch").arg("--version").output().is_err() {
@@ -171,39 +171,78 @@ pub fn submit(
     let sigmap = std::env::current_exe()
         .map_err(|e| Error::Usage(format!("cannot find the sigmap binary: {e}")))?;
     let tasks = if resume {
-        let previous: Submission = crate::error::read_toml(&out.join("submit.toml"))?;
-        if previous.experiment != experiment_path {
-            return Err(Error::input(
-                out.join("submit.toml"),
-                format!(
-                    "this folder holds a submission of {}, not of {}",
-                    previous.experiment.display(),
-                    experiment_path.display()
-                ),
-            ));
-        }
-        if !(1..=MAX_TASKS).contains(&previous.tasks) {
-            return Err(Error::input(
-                out.join("submit.toml"),
-                format!(
-                    "tasks = {} must be between 1 and {MAX_TASKS}",
-                    previous.tasks
-                ),
-            ));
-        }
-        previous.tasks
+        previous_tasks(&out, &experiment_path)?
     } else {
         tasks
     };
     let submission = Submission {
-        experiment: experiment_path.clone(),
+        experiment: experiment_path,
         tasks,
-        sigmap: sigmap.clone(),
+        sigmap,
     };
     let manifest = toml::to_string(&submission).map_err(|e| Error::Usage(e.to_string()))?;
     std::fs::write(out.join("submit.toml"), manifest)
         .map_err(|e| Error::io(out.join("submit.toml"), e))?;
+    let scripts = write_scripts(&out, experiment.name(), &submission)?;
+    let todo: Vec<usize> = if resume {
+        progress(&experiment, &out, tasks)?
+            .into_iter()
+            .filter(|s| !s.missing.is_empty())
+            .map(|s| s.shard)
+            .collect()
+    } else {
+        (1..=tasks).collect()
+    };
+    let (array_job, merge_job) = queue(&scripts, &todo, sbatch_args)?;
+    Ok(Submitted {
+        shards: todo,
+        tasks,
+        array_job,
+        merge_job,
+        out,
+    })
+}
 
+/// The tasks of the earlier submission in `out`, which must be of the
+/// same experiment.
+fn previous_tasks(out: &Path, experiment_path: &Path) -> Result<usize> {
+    let manifest = out.join("submit.toml");
+    let previous: Submission = crate::error::read_toml(&manifest)?;
+    if previous.experiment != experiment_path {
+        return Err(Error::input(
+            &manifest,
+            format!(
+                "this folder holds a submission of {}, not of {}",
+                previous.experiment.display(),
+                experiment_path.display()
+            ),
+        ));
+    }
+    if !(1..=MAX_TASKS).contains(&previous.tasks) {
+        return Err(Error::input(
+            &manifest,
+            format!(
+                "tasks = {} must be between 1 and {MAX_TASKS}",
+                previous.tasks
+            ),
+        ));
+    }
+    Ok(previous.tasks)
+}
+
+/// The two batch scripts of a submission.
+struct Scripts {
+    /// The job array: task k runs shard k.
+    array: PathBuf,
+    /// The merge of the shards.
+    merge: PathBuf,
+}
+
+/// Writes the job array's and the merge's scripts into `out`.
+fn write_scripts(out: &Path, name: &str, submission: &Submission) -> Result<Scripts> {
+    let tasks = submission.tasks;
+    let (sigmap, experiment) = (quote(&submission.sigmap), quote(&submission.experiment));
+    let logs = out.join("logs");
     let array = out.join("sigmap_array.sbatch");
     let script = format!(
         "#!/bin/bash\n\
@@ -214,14 +253,11 @@ pub fn submit(
          set -euo pipefail\n\
          exec {sigmap} run {experiment} --shard \"$SLURM_ARRAY_TASK_ID/{tasks}\" \\\n    \
          --out {out}/shard_\"$SLURM_ARRAY_TASK_ID\" --threads \"${{SLURM_CPUS_PER_TASK:-1}}\" --quiet\n",
-        name = experiment.name(),
-        logs = out.join("logs").display(),
-        sigmap = quote(&sigmap),
-        experiment = quote(&experiment_path),
-        out = quote(&out),
+        logs = logs.display(),
+        out = quote(out),
     );
     std::fs::write(&array, script).map_err(|e| Error::io(&array, e))?;
-    let shards: Vec<String> = (1..=tasks).map(|k| quote(&shard_dir(&out, k))).collect();
+    let shards: Vec<String> = (1..=tasks).map(|k| quote(&shard_dir(out, k))).collect();
     let merge = out.join("sigmap_merge.sbatch");
     let script = format!(
         "#!/bin/bash\n\
@@ -230,50 +266,41 @@ pub fn submit(
          #SBATCH --output={logs}/merge.log\n\
          set -euo pipefail\n\
          exec {sigmap} merge {experiment} {shards} --out {out}\n",
-        name = experiment.name(),
-        logs = out.join("logs").display(),
-        sigmap = quote(&sigmap),
-        experiment = quote(&experiment_path),
+        logs = logs.display(),
         shards = shards.join(" "),
-        out = quote(&out),
+        out = quote(out),
     );
     std::fs::write(&merge, script).map_err(|e| Error::io(&merge, e))?;
+    Ok(Scripts { array, merge })
+}
 
-    let todo: Vec<usize> = if resume {
-        progress(&experiment, &out, tasks)?
-            .into_iter()
-            .filter(|s| !s.missing.is_empty())
-            .map(|s| s.shard)
-            .collect()
-    } else {
-        (1..=tasks).collect()
-    };
+/// Queues the array of the shards `todo` (none: no array) and the merge
+/// after it; returns their job ids.
+fn queue(
+    scripts: &Scripts,
+    todo: &[usize],
+    sbatch_args: &[String],
+) -> Result<(Option<String>, String)> {
     let mut dependency = Vec::new();
     let mut array_job = None;
     if !todo.is_empty() {
-        let list: Vec<String> = todo.iter().map(std::string::ToString::to_string).collect();
+        let list: Vec<String> = todo.iter().map(ToString::to_string).collect();
         let mut array_args = vec![format!("--array={}", list.join(","))];
         array_args.extend(sbatch_args.iter().cloned());
-        let id = sbatch(&array_args, &array)?;
+        let id = sbatch(&array_args, &scripts.array)?;
         dependency.push(format!("--dependency=afterok:{id}"));
         array_job = Some(id);
     }
     dependency.extend(sbatch_args.iter().cloned());
-    let merge_job = sbatch(&dependency, &merge).map_err(|e| match &array_job {
+    let merge_job = sbatch(&dependency, &scripts.merge).map_err(|e| match &array_job {
         Some(id) => Error::Usage(format!(
             "{e} (the shards went in as job array {id}; queue the merge with \
              `sbatch --dependency=afterok:{id} {}`)",
-            merge.display()
+            scripts.merge.display()
         )),
         None => e,
     })?;
-    Ok(Submitted {
-        shards: todo,
-        tasks,
-        array_job,
-        merge_job,
-        out,
-    })
+    Ok((array_job, merge_job))
 }
 
 /// Reads the submission recorded in `dir` and its experiment.
