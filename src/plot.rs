@@ -4,6 +4,8 @@
 //! labelling each tick with `10^tick`, so one code path serves both kinds of axes.
 
 use crate::error::{Error, Result};
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -149,105 +151,139 @@ fn draw_panels(svg: &mut String, path: &Path, columns: usize, panels: &[Panel]) 
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let areas = root.split_evenly((rows, columns));
     for (area, panel) in areas.iter().zip(panels) {
-        let lines: Vec<Vec<(f64, f64)>> = panel
-            .series
-            .iter()
-            .map(|s| {
-                s.points
-                    .iter()
-                    .filter_map(|&(x, y)| {
-                        Some((transform(x, panel.log_x)?, transform(y, panel.log_y)?))
-                    })
-                    .collect()
-            })
-            .collect();
-        let bars: Vec<Vec<(f64, f64, f64)>> = panel
-            .series
-            .iter()
-            .map(|s| {
-                s.intervals
-                    .iter()
-                    .filter_map(|&(x, lo, hi)| {
-                        Some((
-                            transform(x, panel.log_x)?,
-                            transform(lo, panel.log_y)?,
-                            transform(hi, panel.log_y)?,
-                        ))
-                    })
-                    .collect()
-            })
-            .collect();
-        let xs = range(lines.iter().flatten().map(|p| p.0), panel.log_x);
-        let ys = range(
-            lines
-                .iter()
-                .flatten()
-                .map(|p| p.1)
-                .chain(bars.iter().flatten().flat_map(|b| [b.1, b.2])),
-            panel.log_y,
-        );
-        let mut chart = ChartBuilder::on(area)
-            .caption(panel.title, ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(64)
-            .build_cartesian_2d(xs.0..xs.1, ys.0..ys.1)
-            .map_err(|e| err(&e))?;
-        let (log_x, log_y) = (panel.log_x, panel.log_y);
-        chart
-            .configure_mesh()
-            .x_desc(panel.x_label)
-            .y_desc(panel.y_label)
-            .x_label_formatter(&|v| label(*v, log_x))
-            .y_label_formatter(&|v| label(*v, log_y))
-            .draw()
-            .map_err(|e| err(&e))?;
-        for (k, (series, points)) in panel.series.iter().zip(&lines).enumerate() {
-            let colour = COLOURS[k % COLOURS.len()];
-            if points.is_empty() && bars[k].is_empty() {
-                // Nothing to draw (nor to name); its colour stays its own.
-                continue;
-            }
-            chart
-                .draw_series(bars[k].iter().map(|&(x, lo, hi)| {
-                    PathElement::new(vec![(x, lo), (x, hi)], colour.stroke_width(1))
-                }))
-                .map_err(|e| err(&e))?;
-            let dots = points.len() <= 60;
-            chart
-                .draw_series(LineSeries::new(
-                    points.iter().copied(),
-                    colour.stroke_width(2),
-                ))
-                .map_err(|e| err(&e))?
-                .label(series.name.clone())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
-                });
-            if dots {
-                chart
-                    .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
-                    .map_err(|e| err(&e))?;
-            }
-        }
-        let bar_lines = bars_as_lines(&bars);
-        let drawn = lines.iter().chain(&bar_lines).map(|l| &l[..]);
-        let longest = panel
-            .series
-            .iter()
-            .map(|s| s.name.chars().count())
-            .max()
-            .unwrap_or(0);
-        let corner = legend_corner(drawn, (xs, ys), panel.series.len(), longest);
-        chart
-            .configure_series_labels()
-            .position(corner)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| err(&e))?;
+        draw_panel(area, panel).map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))
+}
+
+/// A panel's series on its axes (log axes as log10): per series its line
+/// points and its interval bars `(x, low, high)`; points a log axis cannot
+/// show are left out.
+#[allow(clippy::type_complexity)]
+fn panel_points(panel: &Panel) -> (Vec<Vec<(f64, f64)>>, Vec<Vec<(f64, f64, f64)>>) {
+    let lines = panel
+        .series
+        .iter()
+        .map(|s| {
+            s.points
+                .iter()
+                .filter_map(|&(x, y)| {
+                    Some((transform(x, panel.log_x)?, transform(y, panel.log_y)?))
+                })
+                .collect()
+        })
+        .collect();
+    let bars = panel
+        .series
+        .iter()
+        .map(|s| {
+            s.intervals
+                .iter()
+                .filter_map(|&(x, lo, hi)| {
+                    Some((
+                        transform(x, panel.log_x)?,
+                        transform(lo, panel.log_y)?,
+                        transform(hi, panel.log_y)?,
+                    ))
+                })
+                .collect()
+        })
+        .collect();
+    (lines, bars)
+}
+
+type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// One panel: axes fitted to its data, its series, its legend where the
+/// lines leave room.
+fn draw_panel(
+    area: &DrawingArea<SVGBackend, Shift>,
+    panel: &Panel,
+) -> std::result::Result<(), String> {
+    let text = |e: &dyn std::fmt::Display| e.to_string();
+    let (lines, bars) = panel_points(panel);
+    let xs = range(lines.iter().flatten().map(|p| p.0), panel.log_x);
+    let ys = range(
+        lines
+            .iter()
+            .flatten()
+            .map(|p| p.1)
+            .chain(bars.iter().flatten().flat_map(|b| [b.1, b.2])),
+        panel.log_y,
+    );
+    let mut chart = ChartBuilder::on(area)
+        .caption(panel.title, ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(64)
+        .build_cartesian_2d(xs.0..xs.1, ys.0..ys.1)
+        .map_err(|e| text(&e))?;
+    let (log_x, log_y) = (panel.log_x, panel.log_y);
+    chart
+        .configure_mesh()
+        .x_desc(panel.x_label)
+        .y_desc(panel.y_label)
+        .x_label_formatter(&|v| label(*v, log_x))
+        .y_label_formatter(&|v| label(*v, log_y))
+        .draw()
+        .map_err(|e| text(&e))?;
+    for (k, (series, points)) in panel.series.iter().zip(&lines).enumerate() {
+        draw_series(&mut chart, k, series, points, &bars[k]).map_err(|e| text(&e))?;
+    }
+    let bar_lines = bars_as_lines(&bars);
+    let drawn = lines.iter().chain(&bar_lines).map(|l| &l[..]);
+    let longest = panel
+        .series
+        .iter()
+        .map(|s| s.name.chars().count())
+        .max()
+        .unwrap_or(0);
+    let corner = legend_corner(drawn, (xs, ys), panel.series.len(), longest);
+    chart
+        .configure_series_labels()
+        .position(corner)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| text(&e))
+}
+
+/// Series `k` of a panel: its interval bars, its line (named in the
+/// legend) and, for a few points, dots.
+fn draw_series(
+    chart: &mut Chart,
+    k: usize,
+    series: &Series,
+    points: &[(f64, f64)],
+    bars: &[(f64, f64, f64)],
+) -> std::result::Result<(), String> {
+    let text = |e: &dyn std::fmt::Display| e.to_string();
+    let colour = COLOURS[k % COLOURS.len()];
+    if points.is_empty() && bars.is_empty() {
+        // Nothing to draw (nor to name); its colour stays its own.
+        return Ok(());
+    }
+    chart
+        .draw_series(
+            bars.iter().map(|&(x, lo, hi)| {
+                PathElement::new(vec![(x, lo), (x, hi)], colour.stroke_width(1))
+            }),
+        )
+        .map_err(|e| text(&e))?;
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().copied(),
+            colour.stroke_width(2),
+        ))
+        .map_err(|e| text(&e))?
+        .label(series.name.clone())
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+    if points.len() <= 60 {
+        chart
+            .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+            .map_err(|e| text(&e))?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -61,48 +61,113 @@ fn call(log_odds: Option<f32>) -> Call {
 pub fn score_map(map: &Octree, truth: &Octree, observable: &FxHashSet<u64>) -> MapScores {
     let mut cells: Vec<u64> = observable.iter().copied().collect();
     cells.sort_unstable();
-    let (mut tp, mut fp, mut fn_, mut ff, mut fo, mut occ, mut free, mut unknown) =
-        (0usize, 0, 0, 0, 0, 0, 0, 0);
-    let mut known: Vec<(f64, bool)> = Vec::new();
-    let mut occupied_keys = FxHashSet::default();
-    let mut scored = 0usize;
-    for code in &cells {
-        let key = Key::from_morton(*code);
-        let Some(t) = truth.query(&key, DEPTH) else {
-            continue;
-        };
-        scored += 1;
-        let truly = t >= 0.0;
-        let m = map.query(&key, DEPTH);
-        let c = call(m);
-        if truly {
-            occ += 1;
-            occupied_keys.insert(*code);
+    let mut c = Calls::count(map, truth, &cells);
+    let (near, near_free) = free_near_surfaces(map, truth, &cells, &c.occupied_keys);
+    let ratio = |a: usize, b: usize| {
+        if b == 0 {
+            f64::NAN
         } else {
-            free += 1;
+            a as f64 / b as f64
         }
-        match (truly, c) {
-            (true, Call::Occupied) => tp += 1,
-            (true, Call::Free) => {
-                ff += 1;
-                fn_ += 1;
-            }
-            (true, Call::Unknown) => fn_ += 1,
-            (false, Call::Occupied) => {
-                fp += 1;
-                fo += 1;
-            }
-            _ => {}
-        }
-        if c == Call::Unknown {
-            unknown += 1;
-        } else if let Some(l) = m {
-            known.push((probability(l as f64), truly));
-        }
+    };
+    let precision = ratio(c.tp, c.tp + c.fp);
+    let recall = ratio(c.tp, c.occupied);
+    MapScores {
+        observable_cells: c.scored,
+        occupied_cells: c.occupied,
+        precision,
+        recall,
+        f1: 2.0 * precision * recall / (precision + recall),
+        iou: ratio(c.tp, c.tp + c.fp + c.fn_),
+        false_free_rate: ratio(c.false_free, c.occupied),
+        false_free_rate_margin: ratio(near_free, near),
+        false_occupied_rate: ratio(c.false_occupied, c.free),
+        unknown_fraction: ratio(c.unknown, c.scored),
+        brier: brier(&c.known),
+        log_loss: log_loss(&c.known),
+        roc_auc: roc_auc(&mut c.known),
     }
-    // Safety margin: observable cells within one cell of a truly occupied one.
+}
+
+/// What a map calls the scored cells, against the truth.
+#[derive(Default)]
+struct Calls {
+    /// Observable cells the truth knows (the scored ones).
+    scored: usize,
+    /// Truly occupied, called occupied.
+    tp: usize,
+    /// Truly free, called occupied.
+    fp: usize,
+    /// Truly occupied, not called occupied.
+    fn_: usize,
+    /// Truly occupied, called free.
+    false_free: usize,
+    /// Truly free, called occupied.
+    false_occupied: usize,
+    /// Truly occupied cells.
+    occupied: usize,
+    /// Truly free cells.
+    free: usize,
+    /// Cells the map does not know.
+    unknown: usize,
+    /// The known cells' occupancy probability and truth.
+    known: Vec<(f64, bool)>,
+    /// The truly occupied cells (Morton codes).
+    occupied_keys: FxHashSet<u64>,
+}
+
+impl Calls {
+    /// Counts the calls of `map` over `cells` (sorted Morton codes).
+    fn count(map: &Octree, truth: &Octree, cells: &[u64]) -> Self {
+        let mut c = Calls::default();
+        for code in cells {
+            let key = Key::from_morton(*code);
+            let Some(t) = truth.query(&key, DEPTH) else {
+                continue;
+            };
+            c.scored += 1;
+            let truly = t >= 0.0;
+            let m = map.query(&key, DEPTH);
+            let called = call(m);
+            if truly {
+                c.occupied += 1;
+                c.occupied_keys.insert(*code);
+            } else {
+                c.free += 1;
+            }
+            match (truly, called) {
+                (true, Call::Occupied) => c.tp += 1,
+                (true, Call::Free) => {
+                    c.false_free += 1;
+                    c.fn_ += 1;
+                }
+                (true, Call::Unknown) => c.fn_ += 1,
+                (false, Call::Occupied) => {
+                    c.fp += 1;
+                    c.false_occupied += 1;
+                }
+                _ => {}
+            }
+            if called == Call::Unknown {
+                c.unknown += 1;
+            } else if let Some(l) = m {
+                c.known.push((probability(l as f64), truly));
+            }
+        }
+        c
+    }
+}
+
+/// The safety margin: of the scored cells within one cell of a truly
+/// occupied one, how many there are and how many the map calls free.
+fn free_near_surfaces(
+    map: &Octree,
+    truth: &Octree,
+    cells: &[u64],
+    occupied_keys: &FxHashSet<u64>,
+) -> (usize, usize) {
     let (mut near, mut near_free) = (0usize, 0usize);
-    for code in &cells {
+    for code in cells {
         let key = Key::from_morton(*code);
         let close = (-1i32..=1).any(|dx| {
             (-1i32..=1).any(|dy| {
@@ -123,22 +188,24 @@ pub fn score_map(map: &Octree, truth: &Octree, observable: &FxHashSet<u64>) -> M
             }
         }
     }
-    let ratio = |a: usize, b: usize| {
-        if b == 0 {
-            f64::NAN
-        } else {
-            a as f64 / b as f64
-        }
-    };
-    let precision = ratio(tp, tp + fp);
-    let recall = ratio(tp, occ);
+    (near, near_free)
+}
+
+/// The mean squared error of the known cells' probabilities.
+fn brier(known: &[(f64, bool)]) -> f64 {
     let n = known.len() as f64;
-    let brier = known
+    known
         .iter()
         .map(|(p, o)| (p - if *o { 1.0 } else { 0.0 }).powi(2))
         .sum::<f64>()
-        / n;
-    let log_loss = -known
+        / n
+}
+
+/// The mean negative log-likelihood of the known cells' truth
+/// (probabilities clamped to [1e-6, 1 − 1e-6]).
+fn log_loss(known: &[(f64, bool)]) -> f64 {
+    let n = known.len() as f64;
+    -known
         .iter()
         .map(|(p, o)| {
             let p = p.clamp(1e-6, 1.0 - 1e-6);
@@ -149,22 +216,7 @@ pub fn score_map(map: &Octree, truth: &Octree, observable: &FxHashSet<u64>) -> M
             }
         })
         .sum::<f64>()
-        / n;
-    MapScores {
-        observable_cells: scored,
-        occupied_cells: occ,
-        precision,
-        recall,
-        f1: 2.0 * precision * recall / (precision + recall),
-        iou: ratio(tp, tp + fp + fn_),
-        false_free_rate: ratio(ff, occ),
-        false_free_rate_margin: ratio(near_free, near),
-        false_occupied_rate: ratio(fo, free),
-        unknown_fraction: ratio(unknown, scored),
-        brier,
-        log_loss,
-        roc_auc: roc_auc(&mut known),
-    }
+        / n
 }
 
 /// Area under the ROC curve (ties share their rank: the Mann–Whitney U).

@@ -42,6 +42,82 @@ fn series_named(series: &mut Vec<Series>, name: String) -> &mut Series {
     &mut series[index]
 }
 
+/// The first sweep axis as a chart's x axis: its label, and where each
+/// value lies (a string axis, profiles or scenes, at its value's index).
+struct FirstAxis {
+    label: String,
+    texts: Vec<String>,
+}
+
+impl FirstAxis {
+    /// The first axis of `cells`; `None` without a sweep.
+    fn of(cells: &[Vec<(String, SweepValue)>]) -> Option<Self> {
+        let field = cells.first()?.first()?.0.clone();
+        let texts: Vec<String> = cells
+            .iter()
+            .filter_map(|c| match &c[0].1 {
+                SweepValue::Text(t) => Some(t.clone()),
+                SweepValue::Number(_) => None,
+            })
+            .fold(Vec::new(), |mut seen, t| {
+                if !seen.contains(&t) {
+                    seen.push(t);
+                }
+                seen
+            });
+        let label = if texts.is_empty() {
+            field
+        } else {
+            format!("{field} (index: {})", texts.join(", "))
+        };
+        Some(Self { label, texts })
+    }
+
+    /// Where `value` lies on the axis.
+    fn x(&self, value: &SweepValue) -> f64 {
+        match value {
+            SweepValue::Number(x) => *x,
+            SweepValue::Text(t) => self.texts.iter().position(|s| s == t).unwrap_or(0) as f64,
+        }
+    }
+}
+
+/// One line per method (and value of the other axes) of `metric`'s means
+/// against the first axis, with their 95% intervals.
+fn series_over_cells(
+    summary: &[SummaryRow],
+    cells: &[Vec<(String, SweepValue)>],
+    methods: &[RunMethod],
+    axis: &FirstAxis,
+    metric: &str,
+) -> Vec<Series> {
+    let label = |cell: &[(String, SweepValue)]| Experiment::cell_label(cell);
+    let mut out: Vec<Series> = Vec::new();
+    for method in methods {
+        for cell in cells {
+            let rest = label(&cell[1..]);
+            let name = if rest.is_empty() {
+                method.to_string()
+            } else {
+                format!("{method} {rest}")
+            };
+            let Some(row) = mean(summary, &label(cell), method, metric) else {
+                continue;
+            };
+            if !row.mean.is_finite() {
+                continue;
+            }
+            let x = axis.x(&cell[0].1);
+            let series = series_named(&mut out, name);
+            series.points.push((x, row.mean));
+            if row.ci95_low.is_finite() {
+                series.intervals.push((x, row.ci95_low, row.ci95_high));
+            }
+        }
+    }
+    out
+}
+
 /// `scores.svg`: F1, false-free rate, Brier and ANEES against the first sweep
 /// axis, one line per method (and value of the other axes), 95% intervals;
 /// and `score_<metric>.svg` beside it for every metric of `summary.csv`.
@@ -51,62 +127,10 @@ pub fn plot_scores(
     cells: &[Vec<(String, SweepValue)>],
     methods: &[RunMethod],
 ) -> Result<Vec<PathBuf>> {
-    let Some(axis) = cells
-        .first()
-        .and_then(|c| c.first())
-        .map(|(f, _)| f.clone())
-    else {
+    let Some(axis) = FirstAxis::of(cells) else {
         return Ok(Vec::new());
     };
-    let label = |cell: &[(String, SweepValue)]| Experiment::cell_label(cell);
-    // A string axis (profiles, scenes) is plotted at the index of its value.
-    let texts: Vec<String> = cells
-        .iter()
-        .filter_map(|c| match &c[0].1 {
-            SweepValue::Text(t) => Some(t.clone()),
-            SweepValue::Number(_) => None,
-        })
-        .fold(Vec::new(), |mut seen, t| {
-            if !seen.contains(&t) {
-                seen.push(t);
-            }
-            seen
-        });
-    let x_of = |v: &SweepValue| match v {
-        SweepValue::Number(x) => *x,
-        SweepValue::Text(t) => texts.iter().position(|s| s == t).unwrap_or(0) as f64,
-    };
-    let axis = if texts.is_empty() {
-        axis
-    } else {
-        format!("{axis} (index: {})", texts.join(", "))
-    };
-    let series_for = |metric: &str| -> Vec<Series> {
-        let mut out: Vec<Series> = Vec::new();
-        for method in methods {
-            for cell in cells {
-                let rest = label(&cell[1..]);
-                let name = if rest.is_empty() {
-                    method.to_string()
-                } else {
-                    format!("{method} {rest}")
-                };
-                let Some(row) = mean(summary, &label(cell), method, metric) else {
-                    continue;
-                };
-                if !row.mean.is_finite() {
-                    continue;
-                }
-                let x = x_of(&cell[0].1);
-                let series = series_named(&mut out, name);
-                series.points.push((x, row.mean));
-                if row.ci95_low.is_finite() {
-                    series.intervals.push((x, row.ci95_low, row.ci95_high));
-                }
-            }
-        }
-        out
-    };
+    let series_for = |metric: &str| series_over_cells(summary, cells, methods, &axis, metric);
     let metrics = [
         ("f1", "occupied F1", false),
         ("false_free_rate", "false-free rate", false),
@@ -121,7 +145,7 @@ pub fn plot_scores(
         .iter()
         .map(|(series, title, log)| Panel {
             title,
-            x_label: &axis,
+            x_label: &axis.label,
             y_label: title,
             log_x: false,
             log_y: *log,
@@ -139,7 +163,7 @@ pub fn plot_scores(
             &chart,
             &[Panel {
                 title: metric,
-                x_label: &axis,
+                x_label: &axis.label,
                 y_label: metric,
                 log_x: false,
                 log_y: metric == "anees",
@@ -297,6 +321,58 @@ pub fn plot_slice(
     crate::files::write_file(path, svg.as_bytes())
 }
 
+/// The cells of a slice: `counts` cells of edge `cell` from `min` at height `z`.
+struct SliceGrid {
+    min: (f64, f64),
+    counts: (usize, usize),
+    cell: f64,
+    z: f64,
+}
+
+/// The lower-left corners of the slice's cells the truth knows, by class:
+/// occupied and correct, free and correct, false-free, false-occupied,
+/// unknown (`classes` lists).
+fn slice_classes(
+    truth: &Octree,
+    map: &Octree,
+    grid: &SliceGrid,
+    classes: usize,
+) -> Vec<Vec<(f64, f64)>> {
+    let mut cells: Vec<Vec<(f64, f64)>> = vec![Vec::new(); classes];
+    let cell = grid.cell;
+    for i in 0..grid.counts.0 {
+        for j in 0..grid.counts.1 {
+            let p = Point3::new(
+                grid.min.0 + (i as f64 + 0.5) * cell,
+                grid.min.1 + (j as f64 + 0.5) * cell,
+                grid.z,
+            );
+            let Some(t) = truth.value_at(&p) else {
+                continue;
+            };
+            let class = match map.value_at(&p) {
+                Some(l) if l >= UNKNOWN_BAND => {
+                    if t >= 0.0 {
+                        0
+                    } else {
+                        3
+                    }
+                }
+                Some(l) if l <= -UNKNOWN_BAND => {
+                    if t >= 0.0 {
+                        2
+                    } else {
+                        1
+                    }
+                }
+                _ => 4,
+            };
+            cells[class].push((p.x - cell / 2.0, p.y - cell / 2.0));
+        }
+    }
+    cells
+}
+
 fn draw_slice(
     svg: &mut String,
     path: &Path,
@@ -346,37 +422,13 @@ fn draw_slice(
             .disable_mesh()
             .draw()
             .map_err(|e| err(&e))?;
-        let mut cells: Vec<Vec<(f64, f64)>> = vec![Vec::new(); colours.len()];
-        for i in 0..nx {
-            for j in 0..ny {
-                let p = Point3::new(
-                    workspace.min.x + (i as f64 + 0.5) * cell,
-                    workspace.min.y + (j as f64 + 0.5) * cell,
-                    z,
-                );
-                let Some(t) = truth.value_at(&p) else {
-                    continue;
-                };
-                let class = match map.value_at(&p) {
-                    Some(l) if l >= UNKNOWN_BAND => {
-                        if t >= 0.0 {
-                            0
-                        } else {
-                            3
-                        }
-                    }
-                    Some(l) if l <= -UNKNOWN_BAND => {
-                        if t >= 0.0 {
-                            2
-                        } else {
-                            1
-                        }
-                    }
-                    _ => 4,
-                };
-                cells[class].push((p.x - cell / 2.0, p.y - cell / 2.0));
-            }
-        }
+        let grid = SliceGrid {
+            min: (workspace.min.x, workspace.min.y),
+            counts: (nx, ny),
+            cell,
+            z,
+        };
+        let cells = slice_classes(truth, map, &grid, colours.len());
         for ((name, colour), corners) in colours.iter().zip(cells) {
             let colour = *colour;
             chart

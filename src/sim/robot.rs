@@ -83,6 +83,97 @@ pub struct Robot {
     parent_joint: HashMap<String, (String, ChainJoint)>,
 }
 
+/// A URDF joint as a chain joint: links that exist, a finite origin, a
+/// usable axis and an interval of limits for a moving joint, a supported
+/// type. Errors say what is wrong with the joint.
+fn chain_joint(
+    joint: &urdf_rs::Joint,
+    links: &[String],
+) -> std::result::Result<ChainJoint, String> {
+    for end in [&joint.parent.link, &joint.child.link] {
+        if !links.contains(end) {
+            return Err(format!(
+                "refers to link '{end}', which the URDF does not define"
+            ));
+        }
+    }
+    let origin = Pose::new(joint.origin.xyz.0, joint.origin.rpy.0);
+    if !origin.is_finite() {
+        return Err("origin has a non-finite value".into());
+    }
+    let axis = || {
+        let a = Vector3::from(joint.axis.xyz.0);
+        if !a.iter().all(|v| v.is_finite()) || a.norm() < 1e-9 {
+            return Err(format!(
+                "axis {:?} is not a usable direction",
+                joint.axis.xyz.0
+            ));
+        }
+        Ok(Unit::new_normalize(a))
+    };
+    let limits = || {
+        let (lower, upper) = (joint.limit.lower, joint.limit.upper);
+        if lower.is_nan() || upper.is_nan() || lower > upper {
+            return Err(format!("limits [{lower}, {upper}] are not an interval"));
+        }
+        if lower == upper {
+            return Err(format!(
+                "has no <limit lower=.. upper=..> or a zero range [{lower}, {upper}]: \
+                 a moving joint needs lower < upper (use type=\"fixed\" for a locked one)"
+            ));
+        }
+        Ok((lower, upper))
+    };
+    let motion = match joint.joint_type {
+        urdf_rs::JointType::Fixed => JointMotion::Fixed,
+        urdf_rs::JointType::Revolute => {
+            let (lower, upper) = limits()?;
+            JointMotion::Revolute {
+                axis: axis()?,
+                lower,
+                upper,
+            }
+        }
+        urdf_rs::JointType::Continuous => JointMotion::Continuous { axis: axis()? },
+        urdf_rs::JointType::Prismatic => {
+            let (lower, upper) = limits()?;
+            JointMotion::Prismatic {
+                axis: axis()?,
+                lower,
+                upper,
+            }
+        }
+        ref other => {
+            return Err(format!(
+                "type {other:?} is not supported (use fixed, revolute, continuous or prismatic)"
+            ))
+        }
+    };
+    Ok(ChainJoint {
+        name: joint.name.clone(),
+        origin: origin.to_isometry(),
+        motion,
+    })
+}
+
+/// A link from which the parent joints never reach a root (within as many
+/// steps as there are links): the joints form a cycle through it.
+fn first_in_a_cycle<'a>(
+    links: &'a [String],
+    parent_joint: &HashMap<String, (String, ChainJoint)>,
+) -> Option<&'a String> {
+    links.iter().find(|start| {
+        let mut link: &String = start;
+        for _ in 0..=links.len() {
+            match parent_joint.get(link) {
+                Some((parent, _)) => link = parent,
+                None => break,
+            }
+        }
+        parent_joint.contains_key(link)
+    })
+}
+
 impl Robot {
     /// Reads and checks a URDF file: every joint of a supported type, links
     /// that exist, a tree (each link has at most one parent), finite origins.
@@ -94,64 +185,7 @@ impl Robot {
         let mut parent_joint = HashMap::new();
         for joint in &urdf.joints {
             let bad = |msg: String| Error::input(path, format!("joint '{}': {msg}", joint.name));
-            for end in [&joint.parent.link, &joint.child.link] {
-                if !links.contains(end) {
-                    return Err(bad(format!(
-                        "refers to link '{end}', which the URDF does not define"
-                    )));
-                }
-            }
-            let origin = Pose::new(joint.origin.xyz.0, joint.origin.rpy.0);
-            if !origin.is_finite() {
-                return Err(bad("origin has a non-finite value".into()));
-            }
-            let axis = || {
-                let a = Vector3::from(joint.axis.xyz.0);
-                if !a.iter().all(|v| v.is_finite()) || a.norm() < 1e-9 {
-                    return Err(bad(format!(
-                        "axis {:?} is not a usable direction",
-                        joint.axis.xyz.0
-                    )));
-                }
-                Ok(Unit::new_normalize(a))
-            };
-            let limits = || {
-                let (lower, upper) = (joint.limit.lower, joint.limit.upper);
-                if lower.is_nan() || upper.is_nan() || lower > upper {
-                    return Err(bad(format!(
-                        "limits [{lower}, {upper}] are not an interval"
-                    )));
-                }
-                if lower == upper {
-                    return Err(bad(format!(
-                        "has no <limit lower=.. upper=..> or a zero range [{lower}, {upper}]: \
-                         a moving joint needs lower < upper (use type=\"fixed\" for a locked one)"
-                    )));
-                }
-                Ok((lower, upper))
-            };
-            let motion = match joint.joint_type {
-                urdf_rs::JointType::Fixed => JointMotion::Fixed,
-                urdf_rs::JointType::Revolute => {
-                    let (lower, upper) = limits()?;
-                    JointMotion::Revolute { axis: axis()?, lower, upper }
-                }
-                urdf_rs::JointType::Continuous => JointMotion::Continuous { axis: axis()? },
-                urdf_rs::JointType::Prismatic => {
-                    let (lower, upper) = limits()?;
-                    JointMotion::Prismatic { axis: axis()?, lower, upper }
-                }
-                ref other => {
-                    return Err(bad(format!(
-                        "type {other:?} is not supported (use fixed, revolute, continuous or prismatic)"
-                    )))
-                }
-            };
-            let chain_joint = ChainJoint {
-                name: joint.name.clone(),
-                origin: origin.to_isometry(),
-                motion,
-            };
+            let chain_joint = chain_joint(joint, &links).map_err(bad)?;
             let previous = parent_joint.insert(
                 joint.child.link.clone(),
                 (joint.parent.link.clone(), chain_joint),
@@ -163,23 +197,11 @@ impl Robot {
                 )));
             }
         }
-        // Every link reaches a root within as many steps as there are links.
-        for start in &links {
-            let mut link = start;
-            for _ in 0..=links.len() {
-                match parent_joint.get(link) {
-                    Some((parent, _)) => link = parent,
-                    None => break,
-                }
-            }
-            if parent_joint.contains_key(link) {
-                return Err(Error::input(
-                    path,
-                    format!(
-                        "the joints form a cycle through link '{start}'; a URDF must be a tree"
-                    ),
-                ));
-            }
+        if let Some(start) = first_in_a_cycle(&links, &parent_joint) {
+            return Err(Error::input(
+                path,
+                format!("the joints form a cycle through link '{start}'; a URDF must be a tree"),
+            ));
         }
         Ok(Self {
             name: urdf.name,
