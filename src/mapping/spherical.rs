@@ -203,6 +203,133 @@ pub struct LocalGrid {
     spare: GridBuffers,
 }
 
+/// How a grid bins beams: the grid's frame and axes, the propagated sensor
+/// origin, and the nominal directions' bins when they fit.
+struct Binning<'a> {
+    origin: Vector3,
+    origin_covariance: &'a Matrix3,
+    grid_from_scene: Matrix3,
+    axes: [&'a Axis; 2],
+    slack: [f64; 2],
+    tangents: &'a [TangentBins; 2],
+    nominal: Option<&'a NominalBins<'a>>,
+    /// One past the last bin: the bin of a beam left out.
+    bins: usize,
+}
+
+impl Binning<'_> {
+    /// Beam `i`'s bin and its direction, range and σ seen from the origin
+    /// (docs/math.md §4.5); a beam that carries nothing, hits the origin or
+    /// falls outside the bins is left out.
+    fn bin(&self, i: usize, end: Option<BeamEnd>) -> (u32, Beam) {
+        let left_out = (self.bins as u32, LEFT_OUT);
+        let Some(end) = end else {
+            return left_out;
+        };
+        let (direction, range, sigma) = match end {
+            BeamEnd::Hit { point, covariance } => {
+                let d = point - self.origin;
+                let r = d.norm();
+                if r.is_nan() || r <= 0.0 {
+                    return left_out;
+                }
+                let v = d / r;
+                let sigma2 = (v.transpose() * covariance * v)[0].max(0.0);
+                (v, r, sigma2.sqrt())
+            }
+            BeamEnd::Miss { direction } => (direction.normalize(), f64::INFINITY, 0.0),
+        };
+        let sigma_origin = (direction.transpose() * self.origin_covariance * direction)[0]
+            .max(0.0)
+            .sqrt();
+        let in_grid = self.grid_from_scene * direction;
+        let bin = match self.nominal.and_then(|n| n.bin_near(i, &in_grid)) {
+            Some(bin) => bin,
+            None => {
+                let Some((a, e)) =
+                    lookup::direction_bin(self.axes, self.slack, self.tangents, &in_grid)
+                else {
+                    return left_out;
+                };
+                bin_index(self.axes[0].count, a, e) as u32
+            }
+        };
+        let beam = Beam {
+            direction,
+            range,
+            sigma,
+            sigma_origin,
+        };
+        (bin, beam)
+    }
+}
+
+/// A stable counting sort of beams by bin, in the memory of a grid's
+/// buffers: beams keep their input order within a bin; those left out
+/// (bin `bins`) are not placed.
+struct BinSort<'a> {
+    bin_of: &'a [u32],
+    bins: usize,
+    offsets: &'a mut Vec<u32>,
+    next: &'a mut Vec<u32>,
+    sorted: &'a mut Vec<u32>,
+}
+
+impl BinSort<'_> {
+    /// Sorts `unbinned` (input order) into `beams` (bin order), each with
+    /// its inverse direction in `inverse`; `offsets[b]..offsets[b + 1]` are
+    /// bin b's beams.
+    fn sort(self, unbinned: &mut Vec<Beam>, beams: &mut Vec<Beam>, inverse: &mut Vec<Vector3>) {
+        let bins = self.bins;
+        let offsets = self.offsets;
+        offsets.clear();
+        offsets.resize(bins + 1, 0);
+        let mut in_order = true;
+        let mut last = 0;
+        for &bin in self.bin_of {
+            if (bin as usize) < bins {
+                offsets[bin as usize + 1] += 1;
+                in_order &= last <= bin;
+                last = bin;
+            }
+        }
+        for i in 0..bins {
+            offsets[i + 1] += offsets[i];
+        }
+        let inverse_of = |beam: &Beam| beam.direction.map(|c| 1.0 / c);
+        if in_order {
+            // The bins lie in the raster's order, so a scan's beams come in
+            // bin order unless a beam turns into a bin beyond the next
+            // beam's (no grid of the benchmark's or the quickstart's scans
+            // has one): the sort is then the input less the beams left out,
+            // and the beams stay where they were computed.
+            let mut placed = self.bin_of.iter().map(|&bin| (bin as usize) < bins);
+            unbinned.retain(|_| placed.next() == Some(true));
+            std::mem::swap(beams, unbinned);
+            beams.par_iter().map(inverse_of).collect_into_vec(inverse);
+        } else {
+            self.next.clone_from(offsets);
+            self.sorted.clear();
+            self.sorted.resize(offsets[bins] as usize, 0);
+            for (i, &bin) in self.bin_of.iter().enumerate() {
+                if (bin as usize) < bins {
+                    let slot = &mut self.next[bin as usize];
+                    self.sorted[*slot as usize] = i as u32;
+                    *slot += 1;
+                }
+            }
+            // The beams in bin order, each with its inverse direction.
+            self.sorted
+                .par_iter()
+                .map(|&i| {
+                    let beam = unbinned[i as usize];
+                    (beam, inverse_of(&beam))
+                })
+                .unzip_into_vecs(beams, inverse);
+        }
+    }
+}
+
 impl LocalGrid {
     /// The grid of `beams` around `origin`; `origin_covariance` is Γ_u (scene
     /// frame); each beam's `σ² = vᵀ Γ_s v` and `σ_o² = vᵀ Γ_u v` (§4.5).
@@ -273,11 +400,9 @@ impl LocalGrid {
             elevation,
             max_range,
         } = layout;
-        let grid_from_scene = scene_from_grid.transpose();
         let bins = azimuth.count * elevation.count;
         let slack = lookup::slack(&azimuth, &elevation);
         let tangents = [TangentBins::new(&azimuth), TangentBins::new(&elevation)];
-        let nominal = nominal.filter(|n| n.fits(&azimuth, &elevation));
         // Each beam's bin and the beam, in input order; `bins` (one past the
         // last bin) marks a beam left out.
         let GridBuffers {
@@ -292,103 +417,28 @@ impl LocalGrid {
             surfaces,
             levels,
         } = buffers;
+        let binning = Binning {
+            origin,
+            origin_covariance,
+            grid_from_scene: scene_from_grid.transpose(),
+            axes: [&azimuth, &elevation],
+            slack,
+            tangents: &tangents,
+            nominal: nominal.filter(|n| n.fits(&azimuth, &elevation)),
+            bins,
+        };
         (0..count)
             .into_par_iter()
-            .map(|i| {
-                let left_out = (bins as u32, LEFT_OUT);
-                let Some(end) = end(i) else {
-                    return left_out;
-                };
-                let (direction, range, sigma) = match end {
-                    BeamEnd::Hit { point, covariance } => {
-                        let d = point - origin;
-                        let r = d.norm();
-                        if r.is_nan() || r <= 0.0 {
-                            return left_out;
-                        }
-                        let v = d / r;
-                        let sigma2 = (v.transpose() * covariance * v)[0].max(0.0);
-                        (v, r, sigma2.sqrt())
-                    }
-                    BeamEnd::Miss { direction } => (direction.normalize(), f64::INFINITY, 0.0),
-                };
-                let sigma_origin = (direction.transpose() * origin_covariance * direction)[0]
-                    .max(0.0)
-                    .sqrt();
-                let in_grid = grid_from_scene * direction;
-                let bin = match nominal.and_then(|n| n.bin_near(i, &in_grid)) {
-                    Some(bin) => bin,
-                    None => {
-                        let Some((a, e)) = lookup::direction_bin(
-                            [&azimuth, &elevation],
-                            slack,
-                            &tangents,
-                            &in_grid,
-                        ) else {
-                            return left_out;
-                        };
-                        bin_index(azimuth.count, a, e) as u32
-                    }
-                };
-                let beam = Beam {
-                    direction,
-                    range,
-                    sigma,
-                    sigma_origin,
-                };
-                (bin, beam)
-            })
+            .map(|i| binning.bin(i, end(i)))
             .unzip_into_vecs(&mut bin_of, &mut unbinned);
-        // A counting sort by bin, stable: beams keep their input order
-        // within a bin; those left out are not placed.
-        offsets.clear();
-        offsets.resize(bins + 1, 0);
-        let mut in_order = true;
-        let mut last = 0;
-        for &bin in &bin_of {
-            if (bin as usize) < bins {
-                offsets[bin as usize + 1] += 1;
-                in_order &= last <= bin;
-                last = bin;
-            }
-        }
-        for i in 0..bins {
-            offsets[i + 1] += offsets[i];
-        }
-        let inverse_of = |beam: &Beam| beam.direction.map(|c| 1.0 / c);
-        if in_order {
-            // The bins lie in the raster's order, so a scan's beams come in
-            // bin order unless a beam turns into a bin beyond the next
-            // beam's (no grid of the benchmark's or the quickstart's scans
-            // has one): the sort is then the input less the beams left out,
-            // and the beams stay where they were computed.
-            let mut placed = bin_of.iter().map(|&bin| (bin as usize) < bins);
-            unbinned.retain(|_| placed.next() == Some(true));
-            std::mem::swap(&mut beams, &mut unbinned);
-            beams
-                .par_iter()
-                .map(inverse_of)
-                .collect_into_vec(&mut inverse);
-        } else {
-            next.clone_from(&offsets);
-            sorted.clear();
-            sorted.resize(offsets[bins] as usize, 0);
-            for (i, &bin) in bin_of.iter().enumerate() {
-                if (bin as usize) < bins {
-                    let slot = &mut next[bin as usize];
-                    sorted[*slot as usize] = i as u32;
-                    *slot += 1;
-                }
-            }
-            // The beams in bin order, each with its inverse direction.
-            sorted
-                .par_iter()
-                .map(|&i| {
-                    let beam = unbinned[i as usize];
-                    (beam, inverse_of(&beam))
-                })
-                .unzip_into_vecs(&mut beams, &mut inverse);
-        }
+        let sort = BinSort {
+            bin_of: &bin_of,
+            bins,
+            offsets: &mut offsets,
+            next: &mut next,
+            sorted: &mut sorted,
+        };
+        sort.sort(&mut unbinned, &mut beams, &mut inverse);
         let spare = GridBuffers {
             bin_of,
             unbinned,

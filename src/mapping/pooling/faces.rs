@@ -50,87 +50,26 @@ pub(super) fn pool_faces(
     if count < MIN_FACE_HITS {
         return raised;
     }
-    let hit = |k: usize| hits[k].map(|h| h.point);
-    let fit = |face: &[usize]| fit_plane(face.iter().filter_map(|&k| hits[k].as_ref()));
-    let variance_along =
-        |k: usize, normal: &Vector3| hits[k].map_or(0.0, |h| h.normal_variance(normal));
-    // Only a beam whose own window was one plane plus noise may seed or join
-    // a face: an edge or a second surface in its window has refused it.
-    let window_pooled: Vec<bool> = out[..count]
-        .iter()
-        .map(|p| p.is_some_and(|p| p.normal.is_some()))
-        .collect();
-    let windowed = |k: usize| window_pooled[k];
-    // Whether beam j's window estimate lies within JOIN_SIGMAS of its own
-    // standard deviation (along the normal) of the plane through `centre`.
-    let window_near = |j: usize, normal: &Vector3, centre: &Vector3| {
-        out[j].is_some_and(|w| {
-            let distance = normal.dot(&(directions[j] * w.range - centre));
-            distance.abs() <= JOIN_SIGMAS * w.sigma * normal.dot(&directions[j]).abs()
-        })
+    let raster = Raster {
+        columns,
+        rows,
+        directions,
+        hits,
+        // Only a beam whose own window was one plane plus noise may seed or
+        // join a face: an edge or a second surface in its window refused it.
+        window_pooled: out[..count]
+            .iter()
+            .map(|p| p.is_some_and(|p| p.normal.is_some()))
+            .collect(),
     };
-    let mut face_of = vec![u32::MAX; count];
-    let mut faces: Vec<Vec<usize>> = Vec::new();
-    for seed in 0..count {
-        if face_of[seed] != u32::MAX || !windowed(seed) {
-            continue;
-        }
-        let id = faces.len() as u32;
-        let Some(window) = out[seed] else { continue };
-        // The seed's window plane: through its pooled point, its normal.
-        let plane = (
-            directions[seed] * window.range,
-            window.normal.unwrap_or_default(),
-        );
-        let mut claim = |k: usize| {
-            let free = face_of[k] == u32::MAX && windowed(k);
-            if free {
-                face_of[k] = id;
-            }
-            free
-        };
-        let face = grow(seed, plane, (columns, rows), &window_near, &mut claim, &fit);
-        faces.push(face);
-    }
+    let (face_of, faces) = raster.grow_faces(out);
     // The strays taken by the face at hand (cleared after each face).
     let mut taken = vec![false; count];
     for (id, face) in faces.iter().enumerate() {
-        if face.len() < MIN_FACE_HITS {
-            continue;
-        }
-        let Some(plane) = fit(face) else {
+        let Some(test) = raster.planar(face) else {
             continue;
         };
-        let variances: Vec<f64> = face
-            .iter()
-            .map(|&k| variance_along(k, &plane.normal))
-            .collect();
-        let chi2: f64 = face
-            .iter()
-            .zip(&variances)
-            .map(|(&k, v)| hit(k).map_or(0.0, |h| plane.distance(&h).powi(2) / v))
-            .sum();
-        let Ok(chi) = ChiSquared::new((face.len() - 3) as f64) else {
-            continue;
-        };
-        if chi2 > chi.inverse_cdf(0.99) {
-            continue;
-        }
-        let m = face.len() as f64;
-        let mean_variance = variances.iter().sum::<f64>() / m;
-        // Showing no other surface: a member, a hit whose window failed its
-        // test (by chance, one in a few dozen) and which lies within 3σ of
-        // the plane, or a beam without a return (nothing in range, or one of
-        // the sensor's dropouts). A hit whose window passed but did not join
-        // lies on another surface, as does a failed hit off the plane.
-        let on_face = |j: usize| {
-            face_of[j] == id as u32
-                || hit(j).is_none_or(|h| {
-                    !windowed(j)
-                        && plane.distance(&h).powi(2)
-                            <= JOIN_SIGMAS * JOIN_SIGMAS * variance_along(j, &plane.normal)
-                })
-        };
+        let on_face = |j: usize| raster.on_face(j, id as u32, &face_of, &test.plane);
         // The hits beside the face whose window failed by chance (one in a
         // hundred at the 99% test) and that lie on its plane: where a window
         // failed for a real second surface, a neighbour shows it and the rim
@@ -138,30 +77,20 @@ pub(super) fn pool_faces(
         let mut stray = Vec::new();
         for &k in face {
             for j in beside(k, (columns, rows)).into_iter().flatten() {
-                if !taken[j] && !windowed(j) && hit(j).is_some() && on_face(j) {
+                if !taken[j] && !raster.windowed(j) && raster.hit(j).is_some() && on_face(j) {
                     taken[j] = true;
                     stray.push(j);
                 }
             }
         }
         for &k in face.iter().chain(&stray) {
-            // A hit on the face's rim may belong to the next surface (the foot
-            // of an object standing on a table lies within 3σ of the table):
-            // only beams with eight neighbours, none showing another surface,
-            // are pooled on it. Past the raster's edge nothing is known, and
-            // a surface there may rise from the face: measured (§5.5),
-            // pooling the edge too raised the shelf's ANEES.
-            let (row, col) = (k / columns, k % columns);
-            let inside = row > 0
-                && col > 0
-                && row + 1 < rows
-                && col + 1 < columns
-                && (row - 1..=row + 1)
-                    .all(|r| (col - 1..=col + 1).all(|c| on_face(r * columns + c)));
-            if !inside || plane.normal.dot(&directions[k]).abs() < 0.1 {
+            if !raster.inside(k, &on_face) || test.plane.normal.dot(&directions[k]).abs() < 0.1 {
                 continue;
             }
-            if let Some(pooled) = plane.predict(&directions[k], mean_variance, m) {
+            if let Some(pooled) = test
+                .plane
+                .predict(&directions[k], test.mean_variance, test.m)
+            {
                 out[k] = Some(pooled);
                 raised[k] = true;
             }
@@ -171,6 +100,144 @@ pub(super) fn pool_faces(
         }
     }
     raised
+}
+
+/// A face that passed the test of one plane: its plane, the mean variance
+/// of its hits along the normal, and how many hits it has.
+struct PlanarFace {
+    plane: Plane,
+    mean_variance: f64,
+    m: f64,
+}
+
+/// A scan's raster of beams as faces see it.
+struct Raster<'a> {
+    columns: usize,
+    rows: usize,
+    directions: &'a [Vector3],
+    hits: &'a [Option<Neighbour>],
+    /// Whether each beam's own window was pooled as one plane.
+    window_pooled: Vec<bool>,
+}
+
+impl Raster<'_> {
+    fn hit(&self, k: usize) -> Option<Vector3> {
+        self.hits[k].map(|h| h.point)
+    }
+
+    fn fit(&self, face: &[usize]) -> Option<Plane> {
+        fit_plane(face.iter().filter_map(|&k| self.hits[k].as_ref()))
+    }
+
+    fn variance_along(&self, k: usize, normal: &Vector3) -> f64 {
+        self.hits[k].map_or(0.0, |h| h.normal_variance(normal))
+    }
+
+    fn windowed(&self, k: usize) -> bool {
+        self.window_pooled[k]
+    }
+
+    /// Every face grown from the windows of `out`: which face each beam is
+    /// in (`u32::MAX`: none) and each face's beams.
+    fn grow_faces(&self, out: &[Pooled]) -> (Vec<u32>, Vec<Vec<usize>>) {
+        let count = self.window_pooled.len();
+        let directions = self.directions;
+        // Whether beam j's window estimate lies within JOIN_SIGMAS of its
+        // own standard deviation (along the normal) of the plane through
+        // `centre`.
+        let window_near = |j: usize, normal: &Vector3, centre: &Vector3| {
+            out[j].is_some_and(|w| {
+                let distance = normal.dot(&(directions[j] * w.range - centre));
+                distance.abs() <= JOIN_SIGMAS * w.sigma * normal.dot(&directions[j]).abs()
+            })
+        };
+        let fit = |face: &[usize]| self.fit(face);
+        let mut face_of = vec![u32::MAX; count];
+        let mut faces: Vec<Vec<usize>> = Vec::new();
+        for seed in 0..count {
+            if face_of[seed] != u32::MAX || !self.windowed(seed) {
+                continue;
+            }
+            let id = faces.len() as u32;
+            let Some(window) = out[seed] else { continue };
+            // The seed's window plane: through its pooled point, its normal.
+            let plane = (
+                directions[seed] * window.range,
+                window.normal.unwrap_or_default(),
+            );
+            let mut claim = |k: usize| {
+                let free = face_of[k] == u32::MAX && self.windowed(k);
+                if free {
+                    face_of[k] = id;
+                }
+                free
+            };
+            let raster = (self.columns, self.rows);
+            let face = grow(seed, plane, raster, &window_near, &mut claim, &fit);
+            faces.push(face);
+        }
+        (face_of, faces)
+    }
+
+    /// The face's plane if the face is large enough and its hits pass the
+    /// 99% χ² test of one plane plus noise.
+    fn planar(&self, face: &[usize]) -> Option<PlanarFace> {
+        if face.len() < MIN_FACE_HITS {
+            return None;
+        }
+        let plane = self.fit(face)?;
+        let variances: Vec<f64> = face
+            .iter()
+            .map(|&k| self.variance_along(k, &plane.normal))
+            .collect();
+        let chi2: f64 = face
+            .iter()
+            .zip(&variances)
+            .map(|(&k, v)| self.hit(k).map_or(0.0, |h| plane.distance(&h).powi(2) / v))
+            .sum();
+        let chi = ChiSquared::new((face.len() - 3) as f64).ok()?;
+        if chi2 > chi.inverse_cdf(0.99) {
+            return None;
+        }
+        let m = face.len() as f64;
+        let mean_variance = variances.iter().sum::<f64>() / m;
+        Some(PlanarFace {
+            plane,
+            mean_variance,
+            m,
+        })
+    }
+
+    /// Whether beam `j` shows no other surface than face `id` on `plane`:
+    /// a member, a hit whose window failed its test (by chance, one in a few
+    /// dozen) and which lies within 3σ of the plane, or a beam without a
+    /// return (nothing in range, or one of the sensor's dropouts). A hit
+    /// whose window passed but did not join lies on another surface, as
+    /// does a failed hit off the plane.
+    fn on_face(&self, j: usize, id: u32, face_of: &[u32], plane: &Plane) -> bool {
+        face_of[j] == id
+            || self.hit(j).is_none_or(|h| {
+                !self.windowed(j)
+                    && plane.distance(&h).powi(2)
+                        <= JOIN_SIGMAS * JOIN_SIGMAS * self.variance_along(j, &plane.normal)
+            })
+    }
+
+    /// Whether beam `k` lies inside its face. A hit on the face's rim may
+    /// belong to the next surface (the foot of an object standing on a
+    /// table lies within 3σ of the table): only beams with eight neighbours,
+    /// none showing another surface (`on_face`), are pooled on it. Past the
+    /// raster's edge nothing is known, and a surface there may rise from the
+    /// face: measured (§5.5), pooling the edge too raised the shelf's ANEES.
+    fn inside(&self, k: usize, on_face: &impl Fn(usize) -> bool) -> bool {
+        let (columns, rows) = (self.columns, self.rows);
+        let (row, col) = (k / columns, k % columns);
+        row > 0
+            && col > 0
+            && row + 1 < rows
+            && col + 1 < columns
+            && (row - 1..=row + 1).all(|r| (col - 1..=col + 1).all(|c| on_face(r * columns + c)))
+    }
 }
 
 /// The face grown from beam `seed`: breadth first over the four raster
