@@ -2,7 +2,7 @@
 
 use super::{progress_bar, with_threads, ExportArgs};
 use crate::error::Result;
-use crate::experiment::export::{graph2tree_command, write_export};
+use crate::experiment::export::{graph2tree_command, write_export, MapFrame};
 use crate::experiment::{self, Experiment};
 use std::path::PathBuf;
 
@@ -36,7 +36,10 @@ pub(crate) fn run(args: ExportArgs) -> Result<()> {
         &out,
         &view,
         &run.scans,
-        (experiment.resolution(), &offset),
+        &MapFrame {
+            resolution: experiment.resolution(),
+            offset: &offset,
+        },
         &what,
     )?;
     if !args.run.quiet {

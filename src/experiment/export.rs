@@ -53,6 +53,16 @@ pub fn graph2tree_command(dir: &Path, resolution: f64, max_range: f64) -> String
     )
 }
 
+/// The map a run's export is for: its resolution and where its frame sits
+/// (`map = scene + offset`, `Experiment::map_offset`).
+#[derive(Clone, Copy, Debug)]
+pub struct MapFrame<'a> {
+    /// The map's resolution (m), for the README's graph2tree command.
+    pub resolution: f64,
+    /// `map = scene + offset`.
+    pub offset: &'a Vector3,
+}
+
 /// Writes the export of `scans` into the folder `out` (staged, then
 /// renamed): `scans.graph`, `vp_NNN.ply`, `poses.txt`, `README.txt`, in
 /// the map frame `map = scene + offset` (`Experiment::map_offset`), so that
@@ -62,9 +72,10 @@ pub fn write_export(
     out: &Path,
     view: &MapperView,
     scans: &[Scan],
-    (resolution, offset): (f64, &Vector3),
+    frame: &MapFrame,
     what: &str,
 ) -> Result<()> {
+    let MapFrame { resolution, offset } = *frame;
     let nodes = scan_nodes(view, scans, offset);
     write_folder(out, |dir| {
         let graph = dir.join("scans.graph");
@@ -134,7 +145,11 @@ mod tests {
         let offset = Vector3::new(0.004, -0.002, 0.001);
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("export");
-        write_export(&out, &view, &run.scans, (0.01, &offset), "test").unwrap();
+        let frame = MapFrame {
+            resolution: 0.01,
+            offset: &offset,
+        };
+        write_export(&out, &view, &run.scans, &frame, "test").unwrap();
         // The profile drops 1% of the beams: the hits must still be the scan's.
         assert!(run.scans[0]
             .measurements

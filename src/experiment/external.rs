@@ -8,7 +8,7 @@
 //! the octree file the command wrote. The command's arguments may hold the
 //! placeholders of [`PLACEHOLDERS`].
 
-use super::export::write_export;
+use super::export::{write_export, MapFrame};
 use crate::error::{Error, Result};
 use crate::geometry::Vector3;
 use crate::mapping::octomap_io::read_octree;
@@ -271,7 +271,10 @@ impl ExternalMapper {
             &export,
             run.view,
             run.scans,
-            (run.resolution, run.offset),
+            &MapFrame {
+                resolution: run.resolution,
+                offset: run.offset,
+            },
             &format!("the run of seed {} for mapper {}", run.seed, self.name),
         )?;
         let places = Placeholders {

@@ -15,12 +15,19 @@ use crate::mapping::scan_graph::ScanNode;
 use crate::mapping::Octree;
 use crate::sim::scene::Scene;
 
+/// Whose row a score is: the sweep cell, the seed and the method's name.
+struct RowOf<'a> {
+    cell: String,
+    seed: u64,
+    name: &'a str,
+}
+
 /// The row of `map` scored against `truth` over `observable`.
 fn row_of(
     map: &Octree,
     truth: &Octree,
     observable: &rustc_hash::FxHashSet<u64>,
-    (cell, seed, name): (String, u64, &str),
+    RowOf { cell, seed, name }: RowOf,
 ) -> RunRow {
     let scores = score_map(map, truth, observable);
     let stats = map.stats();
@@ -63,7 +70,7 @@ pub fn score_external(
     let observable = observable(experiment, &run.truth.scans, &offset);
     let truth = ground_truth(experiment, seed);
     let cell = Experiment::cell_label(experiment.cell());
-    let mut row = row_of(map, &truth, &observable, (cell, seed, name));
+    let mut row = row_of(map, &truth, &observable, RowOf { cell, seed, name });
     row.resolution = experiment.resolution();
     Ok(row)
 }
@@ -115,7 +122,12 @@ pub fn score_against_scene(
     check_resolution(scene, map.resolution())?;
     let truth = voxelise_in(scene, map.resolution(), map_from_scene);
     let observable = observable_along(recorded_rays(nodes, max_range), map.resolution());
-    Ok(row_of(map, &truth, &observable, (String::new(), 0, name)))
+    let whose = RowOf {
+        cell: String::new(),
+        seed: 0,
+        name,
+    };
+    Ok(row_of(map, &truth, &observable, whose))
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@
 
 use super::octree::{Clamp, Key, Octree, LOG_ODDS_HIT, LOG_ODDS_MISS};
 use crate::geometry::{Point3, Vector3};
-use dense::{DenseWalk, Walk};
+use dense::{DenseWalk, ScanRays, Walk};
 use rayon::prelude::*;
 use rustc_hash::FxHashSet;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -468,7 +468,13 @@ impl RayUpdater {
         if self.free.dense {
             // Rays in chunks, each setting bits (free and occupied); the sets
             // are the same whatever the thread count, and listed afterwards.
-            let scan = (tree, *origin, max_range, start, !self.one_at_a_time);
+            let scan = ScanRays {
+                tree,
+                origin: *origin,
+                max_range,
+                start,
+                vectors: !self.one_at_a_time,
+            };
             let begin = |dense: &DenseWalk, rays: Rays, walks: &mut Vec<Walk>| {
                 walks.clear();
                 match rays {
@@ -483,7 +489,7 @@ impl RayUpdater {
                 let mut walks = std::mem::take(&mut self.walks);
                 let hits = hits.chunks(RAYS_PER_TASK).map(Rays::Hits);
                 for rays in hits.chain(misses.chunks(RAYS_PER_TASK).map(Rays::Misses)) {
-                    let walk = DenseWalk::new(scan, (&self.free, &self.occupied));
+                    let walk = DenseWalk::new(scan, &self.free, &self.occupied);
                     begin(&walk, rays, &mut walks);
                     let (start, lanes, wide) = (walk.start, walk.lanes, walk.wide);
                     dense::mark_exclusive(&mut self.free.bits, start, &walks, lanes, wide);
@@ -491,7 +497,7 @@ impl RayUpdater {
                 self.walks = walks;
             } else {
                 // Chunks in parallel.
-                let walk = DenseWalk::new(scan, (&self.free, &self.occupied));
+                let walk = DenseWalk::new(scan, &self.free, &self.occupied);
                 let hits = hits.par_chunks(RAYS_PER_TASK).map(Rays::Hits);
                 let misses = misses.par_chunks(RAYS_PER_TASK).map(Rays::Misses);
                 let buffer = || Vec::with_capacity(RAYS_PER_TASK);

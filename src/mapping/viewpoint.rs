@@ -1,6 +1,6 @@
 //! One viewpoint's local grid from its propagated beams (docs/math.md §4.5, §5.1).
 
-use super::spherical::{Axis, BeamEnd, GridBuffers, GridLayout, LocalGrid, NominalBins};
+use super::spherical::{Axis, BeamEnd, GridBuffers, GridLayout, LocalGrid};
 use crate::geometry::{Matrix3, Vector3};
 
 /// The angular layout of the scanner: its column and row angles (rad).
@@ -39,29 +39,6 @@ pub fn local_grid(
     beams: &[BeamEnd],
     max_range: f64,
 ) -> LocalGrid {
-    let ends = (beams.len(), |i: usize| Some(beams[i]));
-    local_grid_of(
-        GridBuffers::default(),
-        (origin, origin_covariance),
-        scene_from_camera,
-        (raster, None),
-        ends,
-        max_range,
-    )
-}
-
-/// [`local_grid`] from `(count, end)`: beam `i < count` ends at `end(i)`,
-/// computed as it is binned ([`LocalGrid::from_ends_in`]), in the memory of
-/// `buffers`; `nominal` ([`nominal_bins`] of the same raster) speeds up the
-/// binning without changing it.
-pub fn local_grid_of(
-    buffers: GridBuffers,
-    (origin, origin_covariance): (&Vector3, &Matrix3),
-    scene_from_camera: &Matrix3,
-    (raster, nominal): (Raster, Option<&NominalBins<'_>>),
-    ends: (usize, impl Fn(usize) -> Option<BeamEnd> + Sync),
-    max_range: f64,
-) -> LocalGrid {
     let (azimuth, elevation) = raster_axes(raster);
     let layout = GridLayout {
         origin: *origin,
@@ -70,7 +47,14 @@ pub fn local_grid_of(
         elevation,
         max_range,
     };
-    LocalGrid::from_ends_in(buffers, layout, nominal, ends, origin_covariance)
+    let ends = (beams.len(), |i: usize| Some(beams[i]));
+    LocalGrid::from_ends_in(
+        GridBuffers::default(),
+        layout,
+        None,
+        ends,
+        origin_covariance,
+    )
 }
 
 /// Grid x = camera z (boresight), grid y = camera x, grid z = camera y.
@@ -91,19 +75,6 @@ pub fn raster_axes(raster: Raster) -> (Axis, Axis) {
     (
         angle_axis(raster.horizontal, v_step),
         angle_axis(raster.vertical, h_step),
-    )
-}
-
-/// The bins of the scanner's nominal beam directions (camera frame, beam
-/// order) on the grid of `raster`: computed once per map, they answer most
-/// beams' bin lookups in every viewpoint's grid ([`NominalBins`]).
-pub fn nominal_bins<'a>(raster: Raster, camera_directions: &'a [Vector3]) -> NominalBins<'a> {
-    let (azimuth, elevation) = raster_axes(raster);
-    NominalBins::new(
-        camera_directions,
-        CAMERA_FROM_GRID.transpose(),
-        azimuth,
-        elevation,
     )
 }
 

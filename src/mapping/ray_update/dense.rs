@@ -44,26 +44,35 @@ pub(super) struct Walk {
     pub stop: isize,
 }
 
+/// Where a scan's rays start and how far they reach.
+#[derive(Clone, Copy)]
+pub struct ScanRays<'a> {
+    /// The tree whose geometry (resolution) the rays are walked on.
+    pub tree: &'a Octree,
+    /// The sensor origin.
+    pub origin: Point3,
+    /// How far a ray reaches (OctoMap's maximum range).
+    pub max_range: f64,
+    /// The origin's cell.
+    pub start: Key,
+    /// Vectors where the CPU has them (false: one ray at a time).
+    pub vectors: bool,
+}
+
 impl<'a> DenseWalk<'a> {
-    /// The rays of a scan, `(tree, origin, max_range, start, vectors)`:
-    /// from `origin` (in the cell `start`) on the bitmaps
-    /// `(free, occupied)` of one box, vectors used where the CPU has them
-    /// (`vectors`; false: one ray at a time).
-    pub fn new(
-        (tree, origin, max_range, start, vectors): (&'a Octree, Point3, f64, Key, bool),
-        (free, occupied): (&'a CellSet, &'a CellSet),
-    ) -> Self {
+    /// The rays of `scan` on the bitmaps `free` and `occupied` of one box.
+    pub fn new(scan: ScanRays<'a>, free: &'a CellSet, occupied: &'a CellSet) -> Self {
         DenseWalk {
-            tree,
-            origin,
-            max_range,
-            centre: tree.center(&start, 16),
-            start: free.index(&start),
+            tree: scan.tree,
+            origin: scan.origin,
+            max_range: scan.max_range,
+            centre: scan.tree.center(&scan.start, 16),
+            start: free.index(&scan.start),
             free,
             occupied,
             strides: std::array::from_fn(|axis| free.stride(axis)),
-            lanes: vectors,
-            wide: vectors,
+            lanes: scan.vectors,
+            wide: scan.vectors,
         }
     }
 
