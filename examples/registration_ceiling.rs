@@ -13,7 +13,7 @@
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sigmap::eval::ground_truth::voxelise_in;
-use sigmap::experiment::runner::{ground_truth, observable, registered_placement};
+use sigmap::experiment::run::runner::{ground_truth, observable, registered_placement};
 use sigmap::experiment::{simulate, Experiment, SweepValue};
 use sigmap::mapping::octree::DEPTH;
 use sigmap::mapping::Key;

@@ -5,7 +5,7 @@
 //! One column per varied axis; top row time, bottom row peak memory, one line
 //! per measure, log-log.
 
-use sigmap::plot::{panel_grid, Panel, Series};
+use sigmap::experiment::charts::{panel_grid, Panel, Series};
 use std::collections::BTreeMap;
 use std::path::Path;
 

@@ -13,7 +13,7 @@
 //! octree, OctoMap's update and files; it never sees the truth), [`eval`]
 //! (ground truth, observable mask, scores), [`experiment`] (configuration,
 //! map building behind a truth-free view, the metrics table, batch runs with
-//! resume, shards, SLURM, summaries, charts), [`plot`] (SVG charts), [`files`]
+//! resume, shards, SLURM, summaries, SVG charts), [`files`]
 //! (staged output that never deletes what sigmap did not write), [`error`]
 //! (one-line errors and exit codes), [`cli`] (the `sigmap` command: thin
 //! adapters over the library).
@@ -26,7 +26,6 @@ pub mod files;
 pub mod geometry;
 pub mod heap;
 pub mod mapping;
-pub mod plot;
 pub mod sim;
 pub mod uncertainty;
 

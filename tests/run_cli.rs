@@ -5,8 +5,8 @@
 mod common;
 
 use common::{portable_quickstart, sigmap, sigmap_ok};
-use sigmap::experiment::journal::journal_record;
-use sigmap::experiment::runner::{RunRow, TimingRow};
+use sigmap::experiment::run::runner::{RunRow, TimingRow};
+use sigmap::experiment::study::journal::journal_record;
 
 fn run(out: &std::path::Path, extra: &[&str]) {
     let mut args = vec![

@@ -1,9 +1,9 @@
 //! `sigmap submit` and `sigmap status`: the arguments and what is printed;
-//! the SLURM logic is `experiment::cluster`.
+//! the SLURM logic is `experiment::study::cluster`.
 
 use super::{StatusArgs, SubmitArgs};
 use crate::error::Result;
-use crate::experiment::cluster::{progress, read_submission, submit as submit_jobs};
+use crate::experiment::study::cluster::{progress, read_submission, submit as submit_jobs};
 
 /// `sigmap submit`.
 pub(crate) fn submit(args: SubmitArgs) -> Result<()> {

@@ -1,8 +1,8 @@
-//! `sigmap export`: one run's scans for another mapper (`experiment::export`).
+//! `sigmap export`: one run's scans for another mapper (`experiment::output::export`).
 
 use super::{progress_bar, with_threads, ExportArgs};
 use crate::error::Result;
-use crate::experiment::export::{graph2tree_command, write_export, MapFrame};
+use crate::experiment::output::export::{graph2tree_command, write_export, MapFrame};
 use crate::experiment::{self, Experiment};
 use std::path::PathBuf;
 

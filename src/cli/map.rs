@@ -1,11 +1,11 @@
 //! `sigmap map`: simulate an experiment's run and build its map with one
 //! method; write the OctoMap file; optionally export the rays for OctoMap.
-//! With `--scans`, map a recorded ScanGraph instead (`experiment::recorded`).
+//! With `--scans`, map a recorded ScanGraph instead (`experiment::run::recorded`).
 
 use super::{progress_bar, resolution_arg, with_threads, MapArgs};
 use crate::error::{Error, Result};
-use crate::experiment::recorded::{map_recorded, read_scan_graph, RecordedOptions};
-use crate::experiment::runner::registered_truth;
+use crate::experiment::run::recorded::{map_recorded, read_scan_graph, RecordedOptions};
+use crate::experiment::run::runner::registered_truth;
 use crate::experiment::{self, write_rays, Experiment, Overrides};
 use crate::mapping::method::REGISTERED_TRUTH_FROM_SCANS;
 use crate::mapping::octomap_io::{check_octree_path, write_octree};

@@ -421,9 +421,9 @@ pub(crate) fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send
 }
 
 /// A `--resolution` argument, checked against [`RESOLUTIONS`](crate::mapping::octree::RESOLUTIONS).
-/// `--tasks`: between 1 and [`crate::experiment::cluster::MAX_TASKS`].
+/// `--tasks`: between 1 and [`crate::experiment::study::cluster::MAX_TASKS`].
 fn parse_tasks(text: &str) -> std::result::Result<usize, String> {
-    let max = crate::experiment::cluster::MAX_TASKS;
+    let max = crate::experiment::study::cluster::MAX_TASKS;
     match text.parse::<usize>() {
         Ok(n) if (1..=max).contains(&n) => Ok(n),
         _ => Err(format!(

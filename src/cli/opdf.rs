@@ -3,7 +3,7 @@
 
 use super::OpdfArgs;
 use crate::error::Result;
-use crate::experiment::figures::write_opdf_figures;
+use crate::experiment::charts::figures::write_opdf_figures;
 use std::path::PathBuf;
 
 /// `sigmap opdf`.

@@ -2,7 +2,7 @@
 
 use super::PropagateArgs;
 use crate::error::{Error, Result};
-use crate::experiment::figures::write_propagation_sweep;
+use crate::experiment::charts::figures::write_propagation_sweep;
 use crate::uncertainty::compare::{compare, log_space, sweep, MethodResult};
 use crate::uncertainty::{read_chain_file, SigmaSet, UncertainPoint};
 use std::path::PathBuf;

@@ -2,7 +2,7 @@
 
 use super::RegressArgs;
 use crate::error::{Error, Result};
-use crate::experiment::regress::{compare, read_summary};
+use crate::experiment::study::regress::{compare, read_summary};
 
 /// `sigmap regress`.
 pub(crate) fn run(args: RegressArgs) -> Result<()> {

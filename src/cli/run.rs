@@ -1,11 +1,11 @@
 //! `sigmap run` and `sigmap merge`: the arguments, the progress bar and the
-//! headline; the batch logic is `experiment::batch`.
+//! headline; the batch logic is `experiment::study::batch`.
 
 use super::{progress_bar, with_threads, MergeArgs, RunArgs};
 use crate::error::{Error, Result};
-use crate::experiment::batch::{merge_shards, run_experiment, RunOptions};
-use crate::experiment::report::HEADLINE;
-use crate::experiment::summary::{PairedRow, SummaryRow};
+use crate::experiment::output::report::HEADLINE;
+use crate::experiment::study::batch::{merge_shards, run_experiment, RunOptions};
+use crate::experiment::study::summary::{PairedRow, SummaryRow};
 use crate::experiment::Experiment;
 use indicatif::ProgressBar;
 

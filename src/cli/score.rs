@@ -1,13 +1,13 @@
 //! `sigmap score`: any OctoMap file scored as `sigmap run` scores its maps
-//! (`experiment::scoring::score_external`), or against a known scene with
-//! the mask of recorded scans (`experiment::scoring::score_against_scene`).
+//! (`experiment::run::scoring::score_external`), or against a known scene with
+//! the mask of recorded scans (`experiment::run::scoring::score_against_scene`).
 
 use super::{with_threads, ScoreArgs};
 use crate::error::{Error, Result};
-use crate::experiment::metrics::{Kind, RunRow, METRICS};
-use crate::experiment::recorded::read_scan_graph;
-use crate::experiment::runner::append_row;
-use crate::experiment::scoring::{score_against_scene, score_external};
+use crate::experiment::run::recorded::read_scan_graph;
+use crate::experiment::run::runner::append_row;
+use crate::experiment::run::scoring::{score_against_scene, score_external};
+use crate::experiment::study::metrics::{Kind, RunRow, METRICS};
 use crate::experiment::Experiment;
 use crate::geometry::Pose;
 use crate::mapping::octomap_io::read_octree;

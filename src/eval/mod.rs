@@ -5,7 +5,7 @@
 //! mask ([`observable`]: the cells some true beam could have seen, from the
 //! scans' `ScanTruth`), and the scores ([`scores`]: precision, recall, F1,
 //! false-free rate, Brier, log-loss, ROC AUC; docs/math.md §7). It takes the
-//! scene and the truth, never an experiment; `experiment::metrics` turns its
+//! scene and the truth, never an experiment; `experiment::study::metrics` turns its
 //! `MapScores` into the columns of runs.csv.
 //!
 //! ```no_run

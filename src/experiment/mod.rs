@@ -1,16 +1,23 @@
-//! Experiments: from an experiment file to scored runs and their files.
+//! Experiments: from an experiment file to scored runs and their files, in
+//! four layers (docs/architecture.md):
 //!
-//! Owns the experiment file and its sweeps ([`Experiment`], `config`), one
-//! simulated run ([`simulate`]: the truth draw and a scan per viewpoint;
-//! its maps are built by [`crate::mapping::build_map`] from
-//! [`Experiment::mapper_view`] and the scans, never the truth), one scored run
-//! ([`runner`]), the metrics table ([`metrics`]), batch runs with resume,
-//! shards and merge ([`batch`], [`journal`]), SLURM submission ([`cluster`]),
-//! the regression gate ([`regress`]), scan files, and charts ([`plots`],
-//! [`figures`]). Each `sigmap` command is a thin adapter over one of these.
+//! - [`run`]: one run: [`simulate`] (the truth draw and a scan per
+//!   viewpoint; its maps are built by [`crate::mapping::build_map`] from
+//!   [`Experiment::mapper_view`] and the scans, never the truth),
+//!   [`run::runner`] (every method scored), [`run::external`] (external
+//!   mappers), [`run::recorded`] (scans recorded elsewhere) and
+//!   [`run::scoring`] (maps built elsewhere);
+//! - [`study`]: the experiment file ([`Experiment`]), its methods, the
+//!   metrics table, summaries and paired comparisons, batch runs with
+//!   resume, shards and merge, SLURM, the regression gate;
+//! - [`output`]: scan files, the export for other mappers, report.html;
+//! - [`charts`]: every chart.
+//!
+//! Each `sigmap` command is a thin adapter over one of these.
 //!
 //! ```no_run
-//! use sigmap::experiment::{runner, simulate, Experiment};
+//! use sigmap::experiment::run::runner;
+//! use sigmap::experiment::{simulate, Experiment};
 //! use sigmap::mapping::{build_map, Method};
 //! let experiment = Experiment::load("experiments/quickstart.toml".as_ref())?;
 //! let run = simulate(&experiment, 1, |_viewpoints_done| {})?;
@@ -23,26 +30,14 @@
 //! # Ok::<(), sigmap::Error>(())
 //! ```
 
-pub mod batch;
-pub mod cluster;
-mod config;
-pub mod export;
-pub mod external;
-pub mod figures;
-pub mod journal;
-pub mod metrics;
-pub mod plots;
-pub mod recorded;
-pub mod regress;
-pub mod report;
-pub mod run_method;
-pub mod runner;
-mod scan_files;
-pub mod scoring;
-mod simulate;
-pub mod summary;
+pub mod charts;
+pub mod output;
+pub mod run;
+pub mod study;
 
-pub use config::{Experiment, Overrides, SweepAxis, SweepValue, Viewpoint};
-pub use run_method::RunMethod;
-pub use scan_files::{chain_file, default_scan_dir, read_ply, write_ply, write_rays, write_scans};
-pub use simulate::{simulate, RunTruth, SimulatedRun};
+pub use output::scan_files::{
+    chain_file, default_scan_dir, read_ply, write_ply, write_rays, write_scans,
+};
+pub use run::simulate::{simulate, RunTruth, SimulatedRun};
+pub use study::config::{Experiment, Overrides, SweepAxis, SweepValue, Viewpoint};
+pub use study::run_method::RunMethod;

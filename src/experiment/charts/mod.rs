@@ -3,6 +3,9 @@
 //! Log axes are drawn by plotting `log10` of the data on a linear axis and
 //! labelling each tick with `10^tick`, so one code path serves both kinds of axes.
 
+pub mod figures;
+pub mod results;
+
 use crate::error::{Error, Result};
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;

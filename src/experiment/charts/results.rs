@@ -2,14 +2,14 @@
 //! with 95% intervals, the coverage of the propagated covariances, and a slice
 //! of each map against the truth.
 
-use super::summary::SummaryRow;
-use super::RunMethod;
-use super::{Experiment, SweepValue};
 use crate::error::{Error, Result};
 use crate::eval::scores::UNKNOWN_BAND;
+use crate::experiment::charts::{panels, Panel, Series};
+use crate::experiment::study::summary::SummaryRow;
+use crate::experiment::RunMethod;
+use crate::experiment::{Experiment, SweepValue};
 use crate::geometry::Point3;
 use crate::mapping::Octree;
-use crate::plot::{panels, Panel, Series};
 use crate::sim::scene::Bounds;
 use crate::uncertainty::consistency::expected_coverage;
 use plotters::prelude::*;
@@ -156,7 +156,7 @@ pub fn plot_scores(
     let mut written = vec![path.to_path_buf()];
     // And every metric of summary.csv on its own chart, beside the overview.
     let dir = path.parent().unwrap_or(Path::new("."));
-    for metric in super::metrics::summarised().map(|m| m.name) {
+    for metric in crate::experiment::study::metrics::summarised().map(|m| m.name) {
         let series = series_for(metric);
         let chart = dir.join(format!("score_{metric}.svg"));
         panels(

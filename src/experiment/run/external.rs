@@ -8,8 +8,8 @@
 //! the octree file the command wrote. The command's arguments may hold the
 //! placeholders of [`PLACEHOLDERS`].
 
-use super::export::{write_export, MapFrame};
 use crate::error::{Error, Result};
+use crate::experiment::output::export::{write_export, MapFrame};
 use crate::geometry::Vector3;
 use crate::mapping::octomap_io::read_octree;
 use crate::mapping::{Clamp, MapperView, Octree, Scan};

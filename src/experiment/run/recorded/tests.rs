@@ -1,5 +1,5 @@
 use super::*;
-use crate::experiment::export::scan_nodes;
+use crate::experiment::output::export::scan_nodes;
 use crate::experiment::{simulate, Experiment};
 use crate::mapping::build_map;
 use crate::mapping::measured::measured_ranges;

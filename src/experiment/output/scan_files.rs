@@ -2,8 +2,8 @@
 //! with the sensor origin, and the nominal chain in `sigmap propagate` format;
 //! the truth in a separate folder for scoring.
 
-use super::{Experiment, SimulatedRun};
 use crate::error::{Error, Result};
+use crate::experiment::{Experiment, SimulatedRun};
 use crate::geometry::{Isometry3, Matrix6, Pose};
 use crate::mapping::measured::{pooled_ray_ends, ray_inputs_into};
 use crate::mapping::scan::{BeamStatus, MapperView, Scan};

@@ -46,7 +46,7 @@ pub(super) struct ExperimentFile {
     pub(super) sweeps: Vec<SweepAxis>,
     /// External mappers, run beside `methods`.
     #[serde(rename = "mapper", default)]
-    pub(super) mappers: Vec<crate::experiment::external::MapperSpec>,
+    pub(super) mappers: Vec<crate::experiment::run::external::MapperSpec>,
 }
 
 /// `beam_pooling` as written: `true` / `false`, or a mode's name (a string,

@@ -5,11 +5,11 @@
 //! `sigmap merge`; like the other outputs, the same inputs give the same
 //! bytes (no dates, no timings).
 
-use super::batch::Study;
-use super::journal::Inputs;
-use super::summary::{PairedRow, SummaryRow, Verdict};
-use super::Experiment;
 use crate::error::{Error, Result};
+use crate::experiment::study::batch::Study;
+use crate::experiment::study::journal::Inputs;
+use crate::experiment::study::summary::{PairedRow, SummaryRow, Verdict};
+use crate::experiment::Experiment;
 use crate::files::write_file;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -100,7 +100,7 @@ pub fn render(
     let methods: Vec<&str> = experiment
         .methods()
         .iter()
-        .map(super::run_method::RunMethod::as_str)
+        .map(crate::experiment::study::run_method::RunMethod::as_str)
         .collect();
     for (term, value) in [
         ("sigmap", env!("CARGO_PKG_VERSION").to_string()),

@@ -1,7 +1,7 @@
 //! The methods of a study: sigmap's own map builders and the external
 //! mappers of the experiment's `[[mapper]]` tables, under one name each.
 
-use super::external::ExternalMapper;
+use crate::experiment::run::external::ExternalMapper;
 use crate::mapping::Method;
 use std::fmt;
 use std::sync::Arc;

@@ -3,8 +3,8 @@
 //! per-seed differences against the reference method (`paired.csv`), each
 //! with its 95% Student t interval (docs/math.md §7.4).
 
-use super::metrics::{Better, Metric, RunRow, METRICS};
-use super::RunMethod;
+use crate::experiment::study::metrics::{Better, Metric, RunRow, METRICS};
+use crate::experiment::RunMethod;
 use crate::uncertainty::consistency::student_t_quantile;
 use serde::{Deserialize, Serialize};
 

@@ -1,7 +1,7 @@
 //! One simulated run: the truth draw and a scan per viewpoint.
 
-use super::Experiment;
 use crate::error::{Error, Result};
+use crate::experiment::Experiment;
 use crate::geometry::Isometry3;
 use crate::mapping::scan::{NominalChain, Scan};
 use crate::sim::scan::{cast_beams, ScanTruth};

@@ -3,9 +3,9 @@
 //! the propagators against Monte Carlo over rotation sigmas.
 
 use crate::error::{Error, Result};
+use crate::experiment::charts::{panels, Panel, Series};
 use crate::files::write_folder;
 use crate::mapping::opdf::OpdfParams;
-use crate::plot::{panels, Panel, Series};
 use crate::uncertainty::compare::SweepRow;
 use std::fmt::Write as _;
 use std::path::Path;

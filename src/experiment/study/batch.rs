@@ -4,13 +4,17 @@
 //! and `run.toml`, the manifest that ties it to its inputs (a resume or a
 //! merge never reuses results of other inputs; docs/architecture.md).
 
-use super::journal::{fingerprint, journal_record, read_journal, Inputs, Wanted};
-use super::runner::{ground_truth, read_rows, run_seed, write_rows, RunRow, TimingRow};
-use super::summary::{paired, summarise, PairedRow, SummaryRow};
-use super::Experiment;
-use super::RunMethod;
-use super::{plots, report};
 use crate::error::{Error, Result};
+use crate::experiment::run::runner::{
+    ground_truth, read_rows, run_seed, write_rows, RunRow, TimingRow,
+};
+use crate::experiment::study::journal::{
+    fingerprint, journal_record, read_journal, Inputs, Wanted,
+};
+use crate::experiment::study::summary::{paired, summarise, PairedRow, SummaryRow};
+use crate::experiment::Experiment;
+use crate::experiment::RunMethod;
+use crate::experiment::{charts::results, output::report};
 use crate::mapping::octomap_io::write_octree;
 use crate::mapping::Octree;
 use rayon::prelude::*;
@@ -240,12 +244,12 @@ fn write_first_maps(
         max: workspace.max + offset,
     };
     let pairs: Vec<_> = cell.methods().iter().cloned().zip(maps.iter()).collect();
-    plots::plot_slice(
+    results::plot_slice(
         &out.join("slice.svg"),
         truth,
         &pairs,
         &workspace,
-        plots::slice_height(truth),
+        results::slice_height(truth),
     )
 }
 
@@ -348,20 +352,20 @@ fn finalize(
     write_rows(&out.join("summary.csv"), &summary)?;
     let paired = paired(&rows, labels, methods, experiment.reference());
     write_rows(&out.join("paired.csv"), &paired)?;
-    let mut charts = plots::plot_scores(
+    let mut charts = results::plot_scores(
         &out.join("scores.svg"),
         &summary,
         &experiment.cells(),
         methods,
     )?;
-    charts.extend(plots::plot_safety(
+    charts.extend(results::plot_safety(
         &out.join("safety.svg"),
         &summary,
         &experiment.cells(),
         methods,
     )?);
     let coverage = out.join("coverage.svg");
-    plots::plot_coverage(&coverage, &summary, &labels[0], methods)?;
+    results::plot_coverage(&coverage, &summary, &labels[0], methods)?;
     charts.push(coverage);
     Ok((Study { summary, paired }, charts))
 }

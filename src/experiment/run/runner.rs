@@ -1,13 +1,13 @@
 //! `sigmap run`: every seed of an experiment, every method on each seed's
 //! scans (common random numbers), scored against the ground truth.
 
-use super::external::MapperRun;
-use super::metrics::Measured;
-use super::{simulate, Experiment, RunMethod, RunTruth, SimulatedRun};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::{voxelise_at, voxelise_in};
 use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
+use crate::experiment::run::external::MapperRun;
+use crate::experiment::study::metrics::Measured;
+use crate::experiment::{simulate, Experiment, RunMethod, RunTruth, SimulatedRun};
 use crate::geometry::{Isometry3, Matrix3, Vector3};
 use crate::mapping::measured::{hit_point, measured_ranges};
 use crate::mapping::method::{propagator, scan_chain};
@@ -20,7 +20,7 @@ use rustc_hash::FxHashSet;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
-pub use super::metrics::RunRow;
+pub use crate::experiment::study::metrics::RunRow;
 
 /// Stage timings of one (seed, method), for `timings.csv` (they vary run to run).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -308,7 +308,7 @@ pub fn append_row(path: &std::path::Path, row: &RunRow) -> Result<()> {
     if path.exists() {
         let text = crate::error::read_text(path)?;
         let first = text.lines().next().unwrap_or("");
-        if first != super::metrics::header() {
+        if first != crate::experiment::study::metrics::header() {
             return Err(Error::input(
                 path,
                 "its header is not the runs.csv columns of this sigmap; choose another --csv file",

@@ -218,7 +218,7 @@ fn own_methods(
 /// `folder`), each name new.
 fn with_mappers(
     own: &[Method],
-    mappers: Vec<crate::experiment::external::MapperSpec>,
+    mappers: Vec<crate::experiment::run::external::MapperSpec>,
     folder: &Path,
 ) -> std::result::Result<Vec<RunMethod>, String> {
     let mut methods: Vec<RunMethod> = own.iter().copied().map(RunMethod::Own).collect();

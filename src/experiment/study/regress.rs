@@ -1,9 +1,9 @@
 //! The regression gate: a summary against a committed baseline, metric by
 //! metric, with per-metric tolerances.
 
-use super::metrics::Tolerance;
-use super::summary::SummaryRow;
 use crate::error::{Error, Result};
+use crate::experiment::study::metrics::Tolerance;
+use crate::experiment::study::summary::SummaryRow;
 use std::collections::BTreeSet;
 use std::path::Path;
 
@@ -11,7 +11,7 @@ use std::path::Path;
 /// (absolute 0.01 for scores in [0, 1], 5% of the baseline for ANEES and
 /// log-loss); 0.01 for a metric the table does not know.
 pub fn default_tolerance(metric: &str, baseline: f64) -> f64 {
-    match super::metrics::metric(metric).map(|m| m.tolerance) {
+    match crate::experiment::study::metrics::metric(metric).map(|m| m.tolerance) {
         Some(Tolerance::Relative(fraction)) => fraction * baseline.abs(),
         Some(Tolerance::Absolute(drift)) => drift,
         Some(Tolerance::NotSummarised) | None => 0.01,

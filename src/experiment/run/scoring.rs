@@ -3,13 +3,13 @@
 //! known scene with the observable mask of recorded scans — the path for
 //! real scans of a workcell whose CAD model is known.
 
-use super::metrics::{Measured, RunRow};
-use super::runner::{ground_truth, observable};
-use super::{simulate, Experiment};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::{check_resolution, voxelise_in};
 use crate::eval::observable::{observable_along, SeenRay};
 use crate::eval::scores::score_map;
+use crate::experiment::run::runner::{ground_truth, observable};
+use crate::experiment::study::metrics::{Measured, RunRow};
+use crate::experiment::{simulate, Experiment};
 use crate::geometry::{Isometry3, Point3};
 use crate::mapping::scan_graph::ScanNode;
 use crate::mapping::Octree;

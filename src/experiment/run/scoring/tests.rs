@@ -1,6 +1,6 @@
 use super::*;
-use crate::experiment::export::scan_nodes;
-use crate::experiment::runner::{quickstart_with_profile, run_seed};
+use crate::experiment::output::export::scan_nodes;
+use crate::experiment::run::runner::{quickstart_with_profile, run_seed};
 use crate::experiment::RunMethod;
 use crate::geometry::Vector3;
 use crate::mapping::Method;
@@ -51,7 +51,7 @@ fn an_exact_run_scored_against_its_scene_and_scans_gives_the_run_row() {
         ] {
             assert_eq!(row.get(name), run_row.get(name), "{method} {name}");
         }
-        for (metric, (a, b)) in crate::experiment::metrics::METRICS
+        for (metric, (a, b)) in crate::experiment::study::metrics::METRICS
             .iter()
             .zip(row.values.iter().zip(&run_row.values))
         {

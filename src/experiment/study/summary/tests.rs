@@ -1,6 +1,6 @@
 use super::*;
 use crate::eval::scores::MapScores;
-use crate::experiment::metrics::{Measured, COVERAGE_3D};
+use crate::experiment::study::metrics::{Measured, COVERAGE_3D};
 use crate::mapping::TreeStats;
 use crate::uncertainty::consistency::expected_coverage;
 

@@ -3,8 +3,8 @@
 //! README saying what the frames are. Only what a real robot would record:
 //! the measurements and the nominal (believed) poses, never the truth.
 
-use super::write_ply;
 use crate::error::{Error, Result};
+use crate::experiment::write_ply;
 use crate::files::write_folder;
 use crate::geometry::{Isometry3, Point3, Vector3};
 use crate::mapping::measured::ray_inputs;

@@ -1,8 +1,8 @@
 //! The experiment file: what is simulated (scene, robot and mount, sensor,
 //! error profile, viewpoints, seed). Paths are relative to the experiment file.
 
-use super::run_method::RunMethod;
 use crate::error::{read_toml_with, Error, Result};
+use crate::experiment::study::run_method::RunMethod;
 use crate::geometry::{Isometry3, Pose, Vector3};
 use crate::mapping::scan::{check_sample_budget, Layouts, MapperView};
 use crate::mapping::settings::MapSettings;

@@ -2,10 +2,10 @@
 //! records are either whole or ignored, and the fingerprint of every input a
 //! run read, so that results of other inputs are never reused.
 
-use super::runner::{RunRow, TimingRow};
-use super::Experiment;
-use super::RunMethod;
 use crate::error::{Error, Result};
+use crate::experiment::run::runner::{RunRow, TimingRow};
+use crate::experiment::Experiment;
+use crate::experiment::RunMethod;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 

@@ -3,10 +3,10 @@
 //! (docs/slurm.md). The submission is recorded in `submit.toml`, so that
 //! its progress can be read back and the missing shards resubmitted.
 
-use super::batch::{finished_runs, shard_runs};
-use super::journal::Wanted;
-use super::Experiment;
 use crate::error::{Error, Result};
+use crate::experiment::study::batch::{finished_runs, shard_runs};
+use crate::experiment::study::journal::Wanted;
+use crate::experiment::Experiment;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -165,7 +165,7 @@ pub fn submit(
     for cell in experiment.cells() {
         Experiment::load_cell(&experiment_path, &cell)?;
     }
-    let out = super::batch::results_dir(&experiment, out);
+    let out = crate::experiment::study::batch::results_dir(&experiment, out);
     std::fs::create_dir_all(out.join("logs")).map_err(|e| Error::io(&out, e))?;
     let out = absolute(&out)?;
     let sigmap = std::env::current_exe()

@@ -1,0 +1,10 @@
+//! Running one run: simulating it (`simulate`), building and scoring every
+//! method's map on its scans (`runner`), running an external mapper on them
+//! (`external`), mapping scans recorded elsewhere (`recorded`) and scoring
+//! maps built elsewhere (`scoring`).
+
+pub mod external;
+pub mod recorded;
+pub mod runner;
+pub mod scoring;
+pub mod simulate;
