@@ -66,14 +66,28 @@ impl Error {
         }
     }
 
-    /// Prefixes the message of an input error with more context
-    /// (`"viewpoint 3: "`), keeping its file.
+    /// Prefixes the message of an input or usage error with more context
+    /// (`"viewpoint 3: "`; the command line's flag), keeping its file.
     pub fn context(self, prefix: impl fmt::Display) -> Self {
         match self {
             Error::Input { path, message } => Error::Input {
                 path,
                 message: format!("{prefix}{message}"),
             },
+            Error::Usage(message) => Error::Usage(format!("{prefix}{message}")),
+            other => other,
+        }
+    }
+
+    /// Appends what to do to the message of an input or usage error (the
+    /// command line's flags, which the library does not know).
+    pub fn hint(self, hint: impl fmt::Display) -> Self {
+        match self {
+            Error::Input { path, message } => Error::Input {
+                path,
+                message: format!("{message} ({hint})"),
+            },
+            Error::Usage(message) => Error::Usage(format!("{message} ({hint})")),
             other => other,
         }
     }

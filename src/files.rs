@@ -214,6 +214,12 @@ impl Drop for RunLock {
     }
 }
 
+/// A file's stem as a name (`experiments/quickstart.toml`: `quickstart`).
+pub fn stem(path: &Path) -> String {
+    path.file_stem()
+        .map_or_else(|| "unnamed".into(), |s| s.to_string_lossy().into_owned())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

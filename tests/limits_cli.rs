@@ -352,7 +352,7 @@ fn regress_refuses_what_it_cannot_compare() {
 fn export_refuses_a_cell_the_experiment_does_not_have() {
     refused(
         &["export", "experiments/quickstart.toml", "--cell", "3"],
-        "--cell 3",
+        "--cell: sweep cell 3",
         "1 sweep cells",
     );
 }

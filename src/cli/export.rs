@@ -8,7 +8,8 @@ use std::path::PathBuf;
 
 /// `sigmap export`.
 pub(crate) fn run(args: ExportArgs) -> Result<()> {
-    let experiment = Experiment::load_cell_index(&args.experiment, args.cell)?;
+    let experiment = Experiment::load_cell_index(&args.experiment, args.cell)
+        .map_err(|e| e.context("--cell: "))?;
     let seed = args.run.seed.unwrap_or(experiment.seed());
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")

@@ -2,7 +2,7 @@
 
 use super::{resolution_arg, GroundTruthArgs};
 use crate::error::Result;
-use crate::eval::ground_truth::{cell_counts, check_resolution, voxelise};
+use crate::eval::ground_truth::{cell_counts, voxelise};
 use crate::mapping::octomap_io::{check_octree_path, write_octree};
 use crate::mapping::Clamp;
 use crate::sim::scene::Scene;
@@ -13,7 +13,7 @@ pub(crate) fn run(args: GroundTruthArgs) -> Result<()> {
     resolution_arg(args.resolution)?;
     check_octree_path(&args.out)?;
     let scene = Scene::load(&args.scene)?;
-    check_resolution(&scene, args.resolution)?;
+    scene.check_resolution(args.resolution)?;
     let start = Instant::now();
     let truth = voxelise(&scene, args.resolution);
     let seconds = start.elapsed().as_secs_f64();

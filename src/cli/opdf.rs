@@ -12,7 +12,8 @@ pub(crate) fn run(args: OpdfArgs) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("results").join("opdf"));
-    write_opdf_figures(&out, args.thickness, args.range)?;
+    write_opdf_figures(&out, args.thickness, args.range)
+        .map_err(|e| e.context("--thickness, --range: "))?;
     eprintln!(
         "wrote {}/opdf_fig1.svg, opdf_fig6.svg and opdf.csv",
         out.display()

@@ -112,7 +112,7 @@ fn run_sweep(
         )));
     }
     let out = args.out.clone().unwrap_or_else(|| {
-        PathBuf::from("results").join(format!("{}_sweep", crate::sim::scene::stem(&args.chain)))
+        PathBuf::from("results").join(format!("{}_sweep", crate::files::stem(&args.chain)))
     });
     let rows = sweep(
         chain,

@@ -4,7 +4,7 @@
 use super::{progress_bar, with_threads, MergeArgs, RunArgs};
 use crate::error::{Error, Result};
 use crate::experiment::output::report::HEADLINE;
-use crate::experiment::study::batch::{merge_shards, run_experiment, RunOptions};
+use crate::experiment::study::batch::{merge_shards, run_experiment, RunOptions, OTHER_INPUTS};
 use crate::experiment::study::summary::{PairedRow, SummaryRow};
 use crate::experiment::Experiment;
 use indicatif::ProgressBar;
@@ -27,7 +27,16 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     let finished = || bar.inc(1);
     let outcome = with_threads(args.run.threads, || {
         run_experiment(&args.experiment, &options, start, finished)
-    })??;
+    })?
+    .map_err(|e| {
+        let stale = e.to_string().contains(OTHER_INPUTS)
+            || e.to_string().contains("must be computed afresh");
+        if stale {
+            e.hint("rerun with --fresh to replace them, or choose another --out")
+        } else {
+            e
+        }
+    })?;
     ProgressBar::finish_and_clear(&bar);
     if !args.run.quiet {
         print_headline(&outcome.experiment, &outcome.summary, outcome.runs);

@@ -16,11 +16,12 @@ use crate::sim::scene::Scene;
 
 /// `sigmap score`.
 pub(crate) fn run(args: ScoreArgs) -> Result<()> {
-    let name = crate::sim::scene::stem(&args.map);
+    let name = crate::files::stem(&args.map);
     let (row, against) = match (&args.scene, &args.experiment) {
         (Some(scene), _) => against_scene(&args, scene, &name)?,
         (None, Some(path)) => {
-            let experiment = Experiment::load_cell_index(path, args.cell)?;
+            let experiment =
+                Experiment::load_cell_index(path, args.cell).map_err(|e| e.context("--cell: "))?;
             let seed = args.run.seed.unwrap_or(experiment.seed());
             let map = read_octree(&args.map, experiment.map().clamp())?;
             let row = with_threads(args.run.threads, || {
@@ -42,7 +43,7 @@ pub(crate) fn run(args: ScoreArgs) -> Result<()> {
         }
     };
     if let Some(path) = &args.csv {
-        append_row(path, &row)?;
+        append_row(path, &row).map_err(|e| e.hint("choose another --csv file"))?;
     }
     if !args.run.quiet {
         print_row(&format!("{} against {against}:", args.map.display()), &row);

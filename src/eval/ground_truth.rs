@@ -12,23 +12,14 @@
 //! only cells near objects are split down to the finest level, where the
 //! exact box–solid test decides.
 
-use crate::error::{Error, Result};
 use crate::geometry::{Isometry3, Matrix3, Point3, Vector3};
-use crate::mapping::octree::{check_cells, check_span, Clamp, Key, DEPTH};
+use crate::mapping::octree::{Clamp, Key, DEPTH};
 use crate::mapping::Octree;
 use crate::sim::scene::{Bounds, Scene};
 
 /// How far (m) a solid must reach into a cell to occupy it: faces that only
 /// touch a cell (or lie within 0.1 µm of its side) leave it free.
 pub const TOUCH: f64 = 1e-7;
-
-/// Checks that the scene's workspace fits the octree at `resolution` (its
-/// span, and at most `MAX_WORKSPACE_CELLS` cells), before anything is
-/// allocated; the error names the scene file.
-pub fn check_resolution(scene: &Scene, resolution: f64) -> Result<()> {
-    check_span(scene.workspace.reach(), resolution).map_err(|e| Error::input(&scene.source, e))?;
-    check_cells(scene.workspace.extent(), resolution).map_err(|e| Error::input(&scene.source, e))
-}
 
 /// The true occupancy of `scene`'s workspace at `resolution`.
 pub fn voxelise(scene: &Scene, resolution: f64) -> Octree {

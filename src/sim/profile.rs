@@ -117,7 +117,7 @@ impl ErrorProfile {
             description.push_str(source);
         }
         Ok(Self {
-            name: file.name.unwrap_or_else(|| super::scene::stem(path)),
+            name: file.name.unwrap_or_else(|| crate::files::stem(path)),
             description,
             source: path.to_path_buf(),
             range: file.range,

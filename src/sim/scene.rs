@@ -254,6 +254,16 @@ impl ObjectSpec {
 }
 
 impl Scene {
+    /// Checks that the workspace fits an octree at `resolution` (its span,
+    /// and at most `MAX_WORKSPACE_CELLS` cells), before anything is
+    /// allocated; the error names the scene file.
+    pub fn check_resolution(&self, resolution: f64) -> Result<()> {
+        use crate::mapping::octree::{check_cells, check_span};
+        check_span(self.workspace.reach(), resolution)
+            .map_err(|e| Error::input(&self.source, e))?;
+        check_cells(self.workspace.extent(), resolution).map_err(|e| Error::input(&self.source, e))
+    }
+
     /// Reads a scene file. Mesh paths are relative to the scene file.
     pub fn load(path: &Path) -> Result<Self> {
         Self::load_with(path, &[])
@@ -322,7 +332,7 @@ impl Scene {
             .collect();
         let bvh = Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves);
         Ok(Self {
-            name: file.name.unwrap_or_else(|| stem(path)),
+            name: file.name.unwrap_or_else(|| crate::files::stem(path)),
             source: path.to_path_buf(),
             description: file.description,
             workspace,
@@ -405,12 +415,6 @@ impl Scene {
         )
         .map_or(true, |r| r.intersecting)
     }
-}
-
-/// A file's stem as a name.
-pub(crate) fn stem(path: &Path) -> String {
-    path.file_stem()
-        .map_or_else(|| "unnamed".into(), |s| s.to_string_lossy().into_owned())
 }
 
 mod cylinder;

@@ -15,9 +15,10 @@ use std::path::Path;
 /// for a surface of thickness `delta` at range `r` (staged, then renamed).
 pub fn write_opdf_figures(out: &Path, delta: f64, r: f64) -> Result<()> {
     if !(delta.is_finite() && delta > 0.0 && r.is_finite() && r > 10.0 * delta) {
-        return Err(Error::Usage(
-            "--thickness must be positive and --range more than ten thicknesses".into(),
-        ));
+        return Err(Error::Usage(format!(
+            "a surface thickness of {delta} m at range {r} m: the thickness must be positive \
+             and the range more than ten thicknesses"
+        )));
     }
     let params = OpdfParams::new(delta);
     let lambdas: Vec<f64> = (0..=2000)

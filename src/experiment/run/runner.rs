@@ -296,7 +296,7 @@ pub fn read_rows<T: for<'de> Deserialize<'de>>(path: &std::path::Path) -> Result
         .map_err(|e| {
             Error::input(
                 path,
-                format!("cannot read the rows ({e}); rerun with --fresh"),
+                format!("cannot read the rows ({e}); the results must be computed afresh"),
             )
         })
 }
@@ -311,7 +311,8 @@ pub fn append_row(path: &std::path::Path, row: &RunRow) -> Result<()> {
         if first != crate::experiment::study::metrics::header() {
             return Err(Error::input(
                 path,
-                "its header is not the runs.csv columns of this sigmap; choose another --csv file",
+                "its header is not the runs.csv columns of this sigmap, and sigmap appends only \
+                 to a file of its own",
             ));
         }
     }

@@ -4,7 +4,7 @@
 //! real scans of a workcell whose CAD model is known.
 
 use crate::error::{Error, Result};
-use crate::eval::ground_truth::{check_resolution, voxelise_in};
+use crate::eval::ground_truth::voxelise_in;
 use crate::eval::observable::{observable_along, SeenRay};
 use crate::eval::scores::score_map;
 use crate::experiment::run::runner::{ground_truth, observable};
@@ -119,7 +119,7 @@ pub fn score_against_scene(
     max_range: Option<f64>,
     name: &str,
 ) -> Result<RunRow> {
-    check_resolution(scene, map.resolution())?;
+    scene.check_resolution(map.resolution())?;
     let truth = voxelise_in(scene, map.resolution(), map_from_scene);
     let observable = observable_along(recorded_rays(nodes, max_range), map.resolution());
     let whose = RowOf {

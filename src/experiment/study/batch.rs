@@ -126,6 +126,9 @@ pub fn run_experiment(
     })
 }
 
+/// How a resume refused results of other inputs begins.
+pub const OTHER_INPUTS: &str = "this folder holds results of other inputs";
+
 /// The journal of finished runs, beside runs.csv while a run is under way.
 const JOURNAL: &str = "runs.journal.csv";
 
@@ -182,10 +185,7 @@ fn check_same_inputs(out: &Path, inputs: &Inputs, (shard, shards): (usize, usize
     };
     Err(Error::input(
         &manifest_path,
-        format!(
-            "this folder holds results of other inputs ({what}); rerun with --fresh to \
-             replace them, or choose another --out"
-        ),
+        format!("{OTHER_INPUTS} ({what}): replace them, or write the results elsewhere"),
     ))
 }
 

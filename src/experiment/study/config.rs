@@ -167,7 +167,7 @@ impl Experiment {
             None => Ok(base),
             Some(k) if k < cells.len() => Self::load_cell(path, &cells[k]),
             Some(k) => Err(Error::Usage(format!(
-                "--cell {k}: the experiment has {} sweep cells (0 to {})",
+                "sweep cell {k}: the experiment has {} sweep cells (0 to {})",
                 cells.len(),
                 cells.len() - 1
             ))),

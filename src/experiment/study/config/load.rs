@@ -301,7 +301,7 @@ impl Experiment {
         let own = own_methods(&file, overrides).map_err(&bad)?;
         let builds_grids = own.iter().any(|m| m.builds_grids());
         let scanner = checked_scanner(&file, &map, builds_grids, resolution).map_err(&bad)?;
-        crate::eval::ground_truth::check_resolution(&scene, resolution)?;
+        scene.check_resolution(resolution)?;
         let methods = with_mappers(&own, file.mappers, dir).map_err(&bad)?;
         // With the methods overridden (`sigmap map --method`) the file's
         // reference counts only if it is still among them.
@@ -310,7 +310,7 @@ impl Experiment {
         });
         let reference = reference_method(named, &methods).map_err(&bad)?;
         let mut experiment = Self {
-            name: file.name.unwrap_or_else(|| crate::sim::scene::stem(path)),
+            name: file.name.unwrap_or_else(|| crate::files::stem(path)),
             description: file.description,
             source: path.to_path_buf(),
             seed,
