@@ -610,3 +610,47 @@ fn the_scaled_sigma_point_set_is_taken_from_the_experiment_file_and_swept() {
         "the unscented rows change with the set"
     );
 }
+
+/// The quickstart's outputs explain themselves: no NaN in the table (a
+/// missing value is `–`, with a line on what each column means), the maps
+/// it wrote named, a README.md in the folder, a slice with labelled axes and
+/// a legend beside the data, report.html under 500 KB; a rerun says how
+/// many runs it found done.
+#[test]
+fn the_quickstart_explains_itself() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("q");
+    let args = [
+        "run",
+        "experiments/quickstart.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let first = sigmap(&args);
+    assert!(first.status.success());
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&first.stdout),
+        String::from_utf8_lossy(&first.stderr),
+    );
+    assert!(!stdout.contains("NaN") && stdout.contains('–'), "{stdout}");
+    assert!(stdout.contains("higher is better") && stdout.contains("3 = honest"));
+    assert!(
+        stderr.contains("map_blind.bt, map_unscented.bt, map_ray_update.bt")
+            && !stderr.contains("<method>"),
+        "{stderr}"
+    );
+    let readme = std::fs::read_to_string(out.join("README.md")).unwrap();
+    assert!(readme.contains("`paired.csv`") && readme.contains("| `false_free_rate` |"));
+    let slice = std::fs::read_to_string(out.join("slice.svg")).unwrap();
+    assert!(
+        slice.contains("x (m, map frame)") && slice.contains("y (m)") && slice.contains("unknown")
+    );
+    let report = std::fs::metadata(out.join("report.html")).unwrap().len();
+    assert!(report < 500_000, "report.html is {report} bytes");
+    let again = sigmap(&args);
+    let stderr = String::from_utf8_lossy(&again.stderr);
+    assert!(
+        stderr.contains("resuming: 9 of 9 runs already done, 0 to do"),
+        "{stderr}"
+    );
+}

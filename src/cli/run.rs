@@ -22,9 +22,20 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         fresh: args.fresh,
         shard: args.shard,
     };
+    // A run is one method on one seed's scans: the bar counts them.
     let bar = progress_bar(0, "runs", args.run.quiet);
-    let start = |n: usize| bar.set_length(n as u64);
-    let finished = || bar.inc(1);
+    let start = |pending: usize, all: usize| {
+        bar.set_length(pending as u64);
+        if pending < all && !args.run.quiet {
+            bar.suspend(|| {
+                eprintln!(
+                    "resuming: {} of {all} runs already done, {pending} to do",
+                    all - pending
+                );
+            });
+        }
+    };
+    let finished = |runs: usize| bar.inc(runs as u64);
     let outcome = with_threads(args.run.threads, || {
         run_experiment(&args.experiment, &options, start, finished)
     })?
@@ -41,9 +52,17 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     if !args.run.quiet {
         print_headline(&outcome.experiment, &outcome.summary, outcome.runs);
         print_paired(&outcome.experiment, &outcome.paired);
+        let maps: Vec<String> = outcome
+            .experiment
+            .methods()
+            .iter()
+            .map(|m| format!("map_{m}.bt"))
+            .collect();
         eprintln!(
-            "wrote {}/runs.csv, summary.csv, paired.csv, timings.csv, map_<method>.bt and report.html",
-            outcome.out.display()
+            "wrote {}/runs.csv, summary.csv, paired.csv, timings.csv, {}, report.html and \
+             README.md (what each file holds)",
+            outcome.out.display(),
+            maps.join(", ")
         );
     }
     Ok(())
@@ -88,17 +107,30 @@ fn print_headline(experiment: &Experiment, summary: &[SummaryRow], rows: usize) 
     for method in experiment.methods() {
         let m = method.as_str();
         println!(
-            "{:<11} {:>7.3} {:>7.3} {:>7.3} {:>11.4} {:>9.3} {:>7.3} {:>8.3} {:>9.2}",
+            "{:<11} {:>7} {:>7} {:>7} {:>11} {:>9} {:>7} {:>8} {:>9}",
             m,
-            get(m, "precision"),
-            get(m, "recall"),
-            get(m, "f1"),
-            get(m, "false_free_rate"),
-            get(m, "unknown_fraction"),
-            get(m, "brier"),
-            get(m, "roc_auc"),
-            get(m, "anees")
+            number(get(m, "precision"), 3),
+            number(get(m, "recall"), 3),
+            number(get(m, "f1"), 3),
+            number(get(m, "false_free_rate"), 4),
+            number(get(m, "unknown_fraction"), 3),
+            number(get(m, "brier"), 3),
+            number(get(m, "roc_auc"), 3),
+            number(get(m, "anees"), 2)
         );
+    }
+    println!(
+        "(higher is better: prec, recall, F1, ROC AUC; lower: false-free = truly occupied cells \
+         called free, unknown, Brier; ANEES: 3 = honest covariances, – = not propagated)"
+    );
+}
+
+/// `v` with `digits` decimals, or `–` when there is no value.
+fn number(v: f64, digits: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.digits$}")
+    } else {
+        "–".into()
     }
 }
 

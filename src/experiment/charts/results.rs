@@ -329,48 +329,98 @@ struct SliceGrid {
     z: f64,
 }
 
-/// The lower-left corners of the slice's cells the truth knows, by class:
-/// occupied and correct, free and correct, false-free, false-occupied,
-/// unknown (`classes` lists).
+/// The slice's cells the truth knows, by class (occupied and correct, free
+/// and correct, false-free, false-occupied, unknown; `classes` lists), as
+/// runs along x of equal class: `(x, y, width)` from the run's lower-left
+/// corner. One rectangle per run keeps the chart small.
 fn slice_classes(
     truth: &Octree,
     map: &Octree,
     grid: &SliceGrid,
     classes: usize,
-) -> Vec<Vec<(f64, f64)>> {
-    let mut cells: Vec<Vec<(f64, f64)>> = vec![Vec::new(); classes];
+) -> Vec<Vec<(f64, f64, f64)>> {
+    let mut runs: Vec<Vec<(f64, f64, f64)>> = vec![Vec::new(); classes];
     let cell = grid.cell;
-    for i in 0..grid.counts.0 {
-        for j in 0..grid.counts.1 {
+    for j in 0..grid.counts.1 {
+        // The run under way: its class, first column and length.
+        let mut open: Option<(usize, usize, usize)> = None;
+        let y = grid.min.1 + j as f64 * cell;
+        let mut close = |run: Option<(usize, usize, usize)>| {
+            if let Some((class, first, length)) = run {
+                let x = grid.min.0 + first as f64 * cell;
+                runs[class].push((x, y, length as f64 * cell));
+            }
+        };
+        for i in 0..grid.counts.0 {
             let p = Point3::new(
                 grid.min.0 + (i as f64 + 0.5) * cell,
                 grid.min.1 + (j as f64 + 0.5) * cell,
                 grid.z,
             );
-            let Some(t) = truth.value_at(&p) else {
-                continue;
-            };
-            let class = match map.value_at(&p) {
-                Some(l) if l >= UNKNOWN_BAND => {
-                    if t >= 0.0 {
-                        0
-                    } else {
-                        3
-                    }
+            let class = truth.value_at(&p).map(|t| slice_class(t, map.value_at(&p)));
+            match (open, class) {
+                (Some((c, first, length)), Some(k)) if c == k && first + length == i => {
+                    open = Some((c, first, length + 1));
                 }
-                Some(l) if l <= -UNKNOWN_BAND => {
-                    if t >= 0.0 {
-                        2
-                    } else {
-                        1
-                    }
+                (_, class) => {
+                    close(open);
+                    open = class.map(|k| (k, i, 1));
                 }
-                _ => 4,
-            };
-            cells[class].push((p.x - cell / 2.0, p.y - cell / 2.0));
+            }
         }
+        close(open);
     }
-    cells
+    runs
+}
+
+/// The class of a cell whose truth is `t` and which the map holds as
+/// `value`: 0 occupied and correct, 1 free and correct, 2 false-free,
+/// 3 false-occupied, 4 unknown.
+fn slice_class(t: f32, value: Option<f32>) -> usize {
+    match value {
+        Some(l) if l >= UNKNOWN_BAND => {
+            if t >= 0.0 {
+                0
+            } else {
+                3
+            }
+        }
+        Some(l) if l <= -UNKNOWN_BAND => {
+            if t >= 0.0 {
+                2
+            } else {
+                1
+            }
+        }
+        _ => 4,
+    }
+}
+
+/// The slice's legend: a swatch (outlined, so that a pale class shows)
+/// and a name per class, in a row.
+fn draw_legend(
+    strip: &DrawingArea<SVGBackend, plotters::coord::Shift>,
+    colours: &[(&str, RGBColor)],
+) -> std::result::Result<(), String> {
+    let text = |e: &dyn std::fmt::Display| e.to_string();
+    let style = ("sans-serif", 14).into_font().color(&BLACK);
+    let mut x = 20;
+    for (name, colour) in colours {
+        strip
+            .draw(&Rectangle::new([(x, 12), (x + 14, 26)], colour.filled()))
+            .map_err(|e| text(&e))?;
+        strip
+            .draw(&Rectangle::new(
+                [(x, 12), (x + 14, 26)],
+                BLACK.stroke_width(1),
+            ))
+            .map_err(|e| text(&e))?;
+        strip
+            .draw(&Text::new(name.to_string(), (x + 20, 12), style.clone()))
+            .map_err(|e| text(&e))?;
+        x += 30 + 8 * name.len() as i32;
+    }
+    Ok(())
 }
 
 fn draw_slice(
@@ -393,25 +443,28 @@ fn draw_slice(
     let step = (nx.max(ny) / MAX_SLICE_CELLS).ceil().max(1.0);
     let (nx, ny) = ((nx / step).ceil() as usize, (ny / step).ceil() as usize);
     let cell = res * step;
-    let root =
-        SVGBackend::with_string(svg, (460 * maps.len().max(1) as u32, 500)).into_drawing_area();
+    let width = 460 * maps.len().max(1) as u32;
+    let root = SVGBackend::with_string(svg, (width, 540)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let colours = [
         ("occupied, correct", RGBColor(30, 30, 30)),
         ("free, correct", RGBColor(205, 225, 245)),
         ("false-free", RGBColor(220, 30, 30)),
         ("false-occupied", RGBColor(245, 150, 20)),
-        ("unknown", RGBColor(250, 250, 250)),
+        ("unknown", RGBColor(200, 200, 200)),
     ];
-    for (area, (method, map)) in root.split_evenly((1, maps.len().max(1))).iter().zip(maps) {
+    // The legend in a strip of its own below the panels: it covers no data.
+    let (panels, strip) = root.split_vertically(500);
+    draw_legend(&strip, &colours).map_err(|e| err(&e))?;
+    for (area, (method, map)) in panels.split_evenly((1, maps.len().max(1))).iter().zip(maps) {
         let mut chart = ChartBuilder::on(area)
             .caption(
                 format!("{method}: slice at z = {z:.3} m"),
                 ("sans-serif", 16),
             )
             .margin(10)
-            .x_label_area_size(30)
-            .y_label_area_size(45)
+            .x_label_area_size(40)
+            .y_label_area_size(55)
             .build_cartesian_2d(
                 workspace.min.x..workspace.max.x,
                 workspace.min.y..workspace.max.y,
@@ -420,6 +473,8 @@ fn draw_slice(
         chart
             .configure_mesh()
             .disable_mesh()
+            .x_desc("x (m, map frame)")
+            .y_desc("y (m)")
             .draw()
             .map_err(|e| err(&e))?;
         let grid = SliceGrid {
@@ -429,27 +484,16 @@ fn draw_slice(
             z,
         };
         let cells = slice_classes(truth, map, &grid, colours.len());
-        for ((name, colour), corners) in colours.iter().zip(cells) {
+        for ((_, colour), runs) in colours.iter().zip(cells) {
             let colour = *colour;
             chart
                 .draw_series(
-                    corners.into_iter().map(|(x, y)| {
-                        Rectangle::new([(x, y), (x + cell, y + cell)], colour.filled())
+                    runs.into_iter().map(|(x, y, w)| {
+                        Rectangle::new([(x, y), (x + w, y + cell)], colour.filled())
                     }),
                 )
-                .map_err(|e| err(&e))?
-                .label(*name)
-                .legend(move |(x, y)| {
-                    Rectangle::new([(x, y - 5), (x + 10, y + 5)], colour.filled())
-                });
+                .map_err(|e| err(&e))?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))
 }

@@ -5,6 +5,7 @@
 //! merge never reuses results of other inputs; docs/architecture.md).
 
 use crate::error::{Error, Result};
+use crate::experiment::output::folder_readme::write_folder_readme;
 use crate::experiment::run::runner::{
     ground_truth, read_rows, run_seed, write_rows, RunRow, TimingRow,
 };
@@ -58,13 +59,15 @@ pub fn results_dir(experiment: &Experiment, out: Option<&Path>) -> PathBuf {
 
 /// Runs every (cell, seed) of the experiment file at `path` that the folder
 /// does not hold yet (or every one of shard `i/n`), in parallel on the
-/// current rayon pool, and writes the folder's files. `pending(n)` is called
-/// once with the number of runs to do, `finished()` after each.
+/// current rayon pool, and writes the folder's files. A run is one method
+/// on one seed's scans: `pending_runs(to_do, all)` is called once with the
+/// runs to do and this shard's runs in all, `finished(runs)` as each seed's
+/// runs are done.
 pub fn run_experiment(
     path: &Path,
     options: &RunOptions,
-    pending_runs: impl FnOnce(usize),
-    finished: impl Fn() + Sync,
+    pending_runs: impl FnOnce(usize, usize),
+    finished: impl Fn(usize) + Sync,
 ) -> Result<RunOutcome> {
     let (experiment, cells, labels) = load_cells(path)?;
     let out = results_dir(&experiment, options.out.as_deref());
@@ -87,12 +90,15 @@ pub fn run_experiment(
         mut timings,
         done,
     } = finished_rows(&out, &wanted)?;
-    let pending: Vec<(usize, u64)> = shard_runs(cells.len(), experiment.seeds(), shard, shards)
+    let mine = shard_runs(cells.len(), experiment.seeds(), shard, shards);
+    let all = mine.len();
+    let pending: Vec<(usize, u64)> = mine
         .into_iter()
         .filter(|(c, s)| !done.contains(&(labels[*c].clone(), *s)))
         .collect();
     write_manifest(&out, &experiment, &inputs, shard, shards)?;
-    pending_runs(pending.len());
+    let methods = experiment.methods().len();
+    pending_runs(pending.len() * methods, all * methods);
     let journal = Journal::open(&out.join(JOURNAL))?;
     let first = (0, experiment.seeds()[0]);
     let results: Vec<Result<(Vec<RunRow>, Vec<TimingRow>)>> = pending
@@ -104,7 +110,7 @@ pub fn run_experiment(
                 write_first_maps(&out, &cells[0], seed, &truth, &maps)?;
             }
             journal.append(&new_rows, &new_timings)?;
-            finished();
+            finished(new_rows.len());
             Ok((new_rows, new_timings))
         })
         .collect();
@@ -367,6 +373,7 @@ fn finalize(
     let coverage = out.join("coverage.svg");
     results::plot_coverage(&coverage, &summary, &labels[0], methods)?;
     charts.push(coverage);
+    write_folder_readme(out, experiment)?;
     Ok((Study { summary, paired }, charts))
 }
 
