@@ -241,7 +241,7 @@ fn absurd_sizes_are_refused_before_any_work() {
         "--threads 5000",
         "cores",
     );
-    refused(&["run", q, "--seed", "7"], "--seed 7", "does not apply");
+    refused(&["run", q, "--seed", "7"], "--seed", "unexpected argument");
     refused(
         &["submit", q, "--tasks", "0"],
         "--tasks",
@@ -505,4 +505,30 @@ fn map_scans_refuses_bad_graphs_and_profiles() {
         String::from_utf8_lossy(&ok.stderr)
     );
     assert!(Path::new(out).is_file());
+}
+
+/// The command line of a careful tool: the help lists the values a flag
+/// takes, `run` offers no flag it would refuse, a bad value gets one line
+/// with the possible values, and a negative number reaches the range check.
+#[test]
+fn the_command_line_lists_values_and_checks_negative_numbers() {
+    let help = String::from_utf8_lossy(&sigmap(&["map", "--help"]).stdout).into_owned();
+    assert!(
+        help.contains("[possible values: blind, jacobian, unscented, correlated, ray_update, registered_truth]")
+            && help.contains("[possible values: off, faces, windows]"),
+        "{help}"
+    );
+    let run_help = String::from_utf8_lossy(&sigmap(&["run", "--help"]).stdout).into_owned();
+    assert!(!run_help.contains("--seed"), "{run_help}");
+    let q = "experiments/quickstart.toml";
+    refused(
+        &["map", q, "--method", "bogus"],
+        "--method",
+        "[possible values: blind,",
+    );
+    refused(
+        &["map", q, "--resolution", "-0.01"],
+        "--resolution",
+        "resolution = -0.01 must be between 0.001 and 1 m",
+    );
 }

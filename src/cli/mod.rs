@@ -170,11 +170,11 @@ pub(crate) struct MapArgs {
     /// blind, jacobian, unscented, correlated or ray_update; or
     /// registered_truth (the truth as the run's scene registration places
     /// it; not for --scans).
-    #[arg(long, default_value = "unscented")]
+    #[arg(long, default_value = "unscented", value_parser = method_parser())]
     method: crate::mapping::Method,
     /// Finest voxel edge (m) [default: the experiment's `resolution`; with
     /// --scans 0.1, as graph2tree].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     resolution: Option<f64>,
     /// Map file, .bt or .ot [default: results/<experiment>/map_<method>.bt;
     /// required with --scans].
@@ -205,7 +205,7 @@ pub(crate) struct MapArgs {
     /// §5.5), for every method: faces (large planar faces only), windows
     /// (every beam's 3x3 neighbourhood too) or off [default: the
     /// experiment's `beam_pooling`; with --scans off].
-    #[arg(long, value_parser = parse_pooling)]
+    #[arg(long, value_parser = pooling_parser())]
     beam_pooling: Option<crate::mapping::pooling::Pooling>,
     /// OPDF methods: sample the surface between neighbouring beams whose
     /// 3x3 window is one plane (docs/math.md §5.4) [default: the
@@ -244,7 +244,18 @@ pub(crate) struct RunArgs {
     #[arg(long, value_parser = parse_shard)]
     shard: Option<(usize, usize)>,
     #[command(flatten)]
-    run: RunOptions,
+    run: BatchOptions,
+}
+
+/// How `sigmap run` runs (its seeds are the experiment's `seeds`).
+#[derive(Args, Debug)]
+pub(crate) struct BatchOptions {
+    /// Worker threads (0: one per core). Results do not depend on it.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// No progress bar or summary.
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 #[derive(Args, Debug)]
@@ -377,9 +388,21 @@ fn parse_shard(text: &str) -> std::result::Result<(usize, usize), String> {
     Ok((i, n))
 }
 
-fn parse_pooling(text: &str) -> std::result::Result<crate::mapping::pooling::Pooling, String> {
-    crate::mapping::pooling::Pooling::from_name(text)
-        .ok_or_else(|| "use faces, windows or off".into())
+/// `--method`: one of the method names, listed in `--help`.
+fn method_parser() -> impl clap::builder::TypedValueParser<Value = crate::mapping::Method> {
+    use clap::builder::TypedValueParser as _;
+    let names = crate::mapping::Method::ALL.map(crate::mapping::Method::as_str);
+    clap::builder::PossibleValuesParser::new(names).try_map(|name| name.parse())
+}
+
+/// `--beam-pooling`: off, faces or windows, listed in `--help`.
+fn pooling_parser() -> impl clap::builder::TypedValueParser<Value = crate::mapping::pooling::Pooling>
+{
+    use clap::builder::TypedValueParser as _;
+    clap::builder::PossibleValuesParser::new(["off", "faces", "windows"]).try_map(|name| {
+        crate::mapping::pooling::Pooling::from_name(&name)
+            .ok_or_else(|| format!("'{name}': use faces, windows or off"))
+    })
 }
 
 fn parse_pose(text: &str) -> std::result::Result<[f64; 6], String> {
@@ -462,14 +485,26 @@ pub fn main() -> i32 {
         Ok(cli) => cli,
         Err(e) => {
             use clap::error::ErrorKind;
-            // A bad value is one line naming the flag and what is wrong;
-            // other usage errors keep clap's usage lines.
-            if matches!(
-                e.kind(),
-                ErrorKind::ValueValidation | ErrorKind::InvalidValue
-            ) {
+            // A bad value or an unknown flag is one line naming the flag
+            // and what is wrong (with the possible values); other usage
+            // errors keep clap's usage lines.
+            let one_line = [
+                ErrorKind::ValueValidation,
+                ErrorKind::InvalidValue,
+                ErrorKind::UnknownArgument,
+            ];
+            if one_line.contains(&e.kind()) {
                 let text = e.render().to_string();
-                eprintln!("{}", text.lines().next().unwrap_or_default());
+                let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+                let first = lines.next().unwrap_or_default();
+                let values = lines.find(|l| l.starts_with("[possible values"));
+                match (e.kind(), values) {
+                    (ErrorKind::UnknownArgument, _) => {
+                        eprintln!("{first} (--help lists the flags)");
+                    }
+                    (_, Some(values)) => eprintln!("{first} {values}"),
+                    _ => eprintln!("{first}"),
+                }
             } else {
                 let _ = e.print();
             }

@@ -2,7 +2,7 @@
 //! headline; the batch logic is `experiment::study::batch`.
 
 use super::{progress_bar, with_threads, MergeArgs, RunArgs};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::experiment::output::report::HEADLINE;
 use crate::experiment::study::batch::{merge_shards, run_experiment, RunOptions, OTHER_INPUTS};
 use crate::experiment::study::summary::{PairedRow, SummaryRow};
@@ -11,12 +11,6 @@ use indicatif::ProgressBar;
 
 /// `sigmap run`.
 pub(crate) fn run(args: RunArgs) -> Result<()> {
-    if let Some(seed) = args.run.seed {
-        return Err(Error::Usage(format!(
-            "--seed {seed} does not apply to `sigmap run`, which runs the experiment's `seeds` \
-             list (edit it in the file; `sigmap map` and `simulate` take --seed)"
-        )));
-    }
     let options = RunOptions {
         out: args.out.clone(),
         fresh: args.fresh,
