@@ -532,3 +532,46 @@ fn the_command_line_lists_values_and_checks_negative_numbers() {
         "resolution = -0.01 must be between 0.001 and 1 m",
     );
 }
+
+/// Inputs in the wrong place or missing say what they are: `score`'s
+/// arguments swapped, `status` on a results folder that is no submission, a
+/// scene file named relative to the experiment that is not there; a `.bt`
+/// scored says why its scores differ from the `.ot`'s, and `export` points
+/// to the `.ot` graph2tree writes.
+#[test]
+fn misplaced_and_missing_inputs_say_what_they_are() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let q = "experiments/quickstart.toml";
+    let out = d.join("q");
+    let out_s = out.to_str().unwrap();
+    let run = sigmap(&["run", q, "--out", out_s, "-q"]);
+    assert!(run.status.success());
+    let map = out.join("map_blind.bt");
+    refused(
+        &["score", q, map.to_str().unwrap()],
+        "quickstart.toml",
+        "the map (.bt or .ot) comes first",
+    );
+    refused(
+        &["status", out_s],
+        "results of `sigmap run`",
+        "no submit.toml",
+    );
+    let missing = experiment(d, "missing_scene", "tabletop.toml", "no_such_scene.toml");
+    refused(
+        &["run", missing.to_str().unwrap(), "-q"],
+        "missing_scene.toml",
+        "no_such_scene.toml\": no such file (looked for",
+    );
+    let scored = sigmap(&["score", map.to_str().unwrap(), q]);
+    assert!(scored.status.success());
+    let note = String::from_utf8_lossy(&scored.stderr);
+    assert!(
+        note.contains("a .bt holds only occupied and free"),
+        "{note}"
+    );
+    let exported = sigmap(&["export", q, "--out", d.join("e").to_str().unwrap()]);
+    let says = String::from_utf8_lossy(&exported.stderr);
+    assert!(says.contains("score map.bt.ot"), "{says}");
+}

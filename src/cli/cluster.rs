@@ -2,7 +2,7 @@
 //! the SLURM logic is `experiment::study::cluster`.
 
 use super::{StatusArgs, SubmitArgs};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::experiment::study::cluster::{progress, read_submission, submit as submit_jobs};
 
 /// `sigmap submit`.
@@ -39,6 +39,16 @@ pub(crate) fn submit(args: SubmitArgs) -> Result<()> {
 
 /// `sigmap status`.
 pub(crate) fn status(args: StatusArgs) -> Result<()> {
+    if !args.dir.join("submit.toml").is_file() {
+        let what = if args.dir.join("run.toml").is_file() {
+            "the results of `sigmap run` (no submit.toml): open its README.md or report.html"
+        } else if args.dir.is_dir() {
+            "not a submission of `sigmap submit` (no submit.toml)"
+        } else {
+            "not a folder"
+        };
+        return Err(Error::input(&args.dir, what));
+    }
     let (submission, experiment) = read_submission(&args.dir)?;
     let states = progress(&experiment, &args.dir, submission.tasks)?;
     println!(

@@ -8,8 +8,8 @@ use std::path::PathBuf;
 
 /// `sigmap export`.
 pub(crate) fn run(args: ExportArgs) -> Result<()> {
-    let experiment = Experiment::load_cell_index(&args.experiment, args.cell)
-        .map_err(|e| e.context("--cell: "))?;
+    let experiment =
+        Experiment::load_cell_index(&args.experiment, args.cell).map_err(super::cell_flag)?;
     let seed = args.run.seed.unwrap_or(experiment.seed());
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")
@@ -56,6 +56,10 @@ pub(crate) fn run(args: ExportArgs) -> Result<()> {
                 experiment.resolution(),
                 experiment.scanner().max_range
             )
+        );
+        eprintln!(
+            "then score map.bt.ot, the full tree graph2tree writes beside map.bt (the .bt \
+             drops the log-odds)"
         );
     }
     Ok(())

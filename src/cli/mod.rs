@@ -444,6 +444,15 @@ pub(crate) fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send
 }
 
 /// A `--resolution` argument, checked against [`RESOLUTIONS`](crate::mapping::octree::RESOLUTIONS).
+/// An error of a sweep cell the experiment does not have names `--cell`.
+pub(crate) fn cell_flag(e: Error) -> Error {
+    if e.to_string().contains("sweep cells (0 to") {
+        e.context("--cell: ")
+    } else {
+        e
+    }
+}
+
 /// `--tasks`: between 1 and [`crate::experiment::study::cluster::MAX_TASKS`].
 fn parse_tasks(text: &str) -> std::result::Result<usize, String> {
     let max = crate::experiment::study::cluster::MAX_TASKS;

@@ -16,12 +16,13 @@ use crate::sim::scene::Scene;
 
 /// `sigmap score`.
 pub(crate) fn run(args: ScoreArgs) -> Result<()> {
+    check_roles(&args)?;
     let name = crate::files::stem(&args.map);
     let (row, against) = match (&args.scene, &args.experiment) {
         (Some(scene), _) => against_scene(&args, scene, &name)?,
         (None, Some(path)) => {
             let experiment =
-                Experiment::load_cell_index(path, args.cell).map_err(|e| e.context("--cell: "))?;
+                Experiment::load_cell_index(path, args.cell).map_err(super::cell_flag)?;
             let seed = args.run.seed.unwrap_or(experiment.seed());
             let map = read_octree(&args.map, experiment.map().clamp())?;
             let row = with_threads(args.run.threads, || {
@@ -47,6 +48,43 @@ pub(crate) fn run(args: ScoreArgs) -> Result<()> {
     }
     if !args.run.quiet {
         print_row(&format!("{} against {against}:", args.map.display()), &row);
+        if args
+            .map
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("bt"))
+        {
+            eprintln!("{BT_NOTE}");
+        }
+    }
+    Ok(())
+}
+
+/// Why a `.bt` scores otherwise than the `.ot` of the same tree.
+const BT_NOTE: &str = "note: a .bt holds only occupied and free (OctoMap's log-odds >= 0 \
+    rule), so the cells these scores call unknown (|log-odds| < 0.1) are classified, and \
+    Brier, log-loss and ROC AUC see hard 0/1 maps; score the .ot (graph2tree writes \
+    NAME.bt.ot beside NAME.bt) for the scores sigmap run gives its own maps";
+
+/// Refuses arguments in each other's places: the map (an OctoMap `.bt` or
+/// `.ot`) comes first, the experiment (`.toml`) second.
+fn check_roles(args: &ScoreArgs) -> Result<()> {
+    let ext = |p: &std::path::Path| {
+        p.extension()
+            .map(|e| e.to_string_lossy().to_lowercase())
+            .unwrap_or_default()
+    };
+    let map_ext = ext(&args.map);
+    let swapped = map_ext == "toml"
+        && args
+            .experiment
+            .as_ref()
+            .is_some_and(|e| matches!(ext(e).as_str(), "bt" | "ot"));
+    if swapped || map_ext == "toml" {
+        return Err(Error::Usage(format!(
+            "{} is an experiment file where the map goes: the map (.bt or .ot) comes first, \
+             `sigmap score MAP EXPERIMENT`",
+            args.map.display()
+        )));
     }
     Ok(())
 }

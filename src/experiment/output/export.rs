@@ -115,7 +115,9 @@ pub fn write_export(
              \x20            the timestamp being the viewpoint index.\n\n\
              OctoMap's map of these scans at the experiment's resolution, and its scores:\n\
              \x20 {command}\n\
-             \x20 sigmap score map.bt EXPERIMENT.toml --seed SEED [--cell K]\n",
+             \x20 sigmap score map.bt.ot EXPERIMENT.toml --seed SEED [--cell K]\n\
+             (score the .bt.ot graph2tree writes beside the .bt: it keeps the log-odds; the .bt\n\
+             holds only occupied and free, so cells the scores call unknown are classified.)\n",
             offset = [offset.x, offset.y, offset.z],
             version = env!("CARGO_PKG_VERSION"),
             reach = NO_RETURN_REACH,

@@ -72,6 +72,25 @@ impl SweptValues {
     }
 }
 
+/// The file the experiment at `path` names with `key = value`, relative to
+/// the experiment's folder; one that does not exist is an error naming the
+/// experiment, the key and where it was looked for.
+fn referred(path: &Path, key: &str, value: &Path) -> Result<PathBuf> {
+    let resolved = path.parent().unwrap_or(Path::new(".")).join(value);
+    if resolved.exists() {
+        return Ok(resolved);
+    }
+    Err(Error::input(
+        path,
+        format!(
+            "{key} = \"{}\": no such file (looked for {}; paths are relative to the experiment \
+             file)",
+            value.display(),
+            resolved.display()
+        ),
+    ))
+}
+
 /// Every sweep axis has values, none twice, and no field is swept twice.
 fn check_sweep_axes(sweeps: &[SweepAxis]) -> std::result::Result<(), String> {
     for (i, axis) in sweeps.iter().enumerate() {
@@ -279,10 +298,11 @@ impl Experiment {
         let file: ExperimentFile = read_toml_with(path, &swept.by_file[0])?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let bad = |msg: String| Error::input(path, msg);
-        let scene = Scene::load_with(&dir.join(&file.scene), &swept.by_file[2])?;
-        let profile = swept.profile(&dir.join(&file.error_profile))?;
+        let scene_path = referred(path, "scene", &file.scene)?;
+        let scene = Scene::load_with(&scene_path, &swept.by_file[2])?;
+        let profile = swept.profile(&referred(path, "error_profile", &file.error_profile)?)?;
         check_sweep_axes(&file.sweeps).map_err(&bad)?;
-        let robot = Robot::load(&dir.join(&file.robot.urdf))?;
+        let robot = Robot::load(&referred(path, "[robot] urdf", &file.robot.urdf)?)?;
         let mount = Mount::of(&robot, &file.robot, &file, &profile, path)?;
         let resolution = overrides.resolution.unwrap_or(file.resolution);
         if !crate::mapping::octree::RESOLUTIONS.contains(&resolution) {
