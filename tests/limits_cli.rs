@@ -575,3 +575,20 @@ fn misplaced_and_missing_inputs_say_what_they_are() {
     let says = String::from_utf8_lossy(&exported.stderr);
     assert!(says.contains("score map.bt.ot"), "{says}");
 }
+
+/// A map that is not an octree is named as the map argument.
+#[test]
+fn a_map_that_is_no_octree_is_named_as_the_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("garbage.bt");
+    std::fs::write(&bad, "not an octree\n").unwrap();
+    refused(
+        &[
+            "score",
+            bad.to_str().unwrap(),
+            "experiments/quickstart.toml",
+        ],
+        "garbage.bt: the map (first argument)",
+        "not an OctoMap file",
+    );
+}

@@ -24,7 +24,8 @@ pub(crate) fn run(args: ScoreArgs) -> Result<()> {
             let experiment =
                 Experiment::load_cell_index(path, args.cell).map_err(super::cell_flag)?;
             let seed = args.run.seed.unwrap_or(experiment.seed());
-            let map = read_octree(&args.map, experiment.map().clamp())?;
+            let map = read_octree(&args.map, experiment.map().clamp())
+                .map_err(|e| e.context("the map (first argument): "))?;
             let row = with_threads(args.run.threads, || {
                 score_external(&experiment, seed, &map, &name)
             })??;
@@ -113,7 +114,8 @@ fn against_scene(
     })?;
     let nodes = read_scan_graph(scans)?;
     // OctoMap's clamp, as a map file written by OctoMap or sigmap keeps it.
-    let map = read_octree(&args.map, Clamp::OCTOMAP)?;
+    let map = read_octree(&args.map, Clamp::OCTOMAP)
+        .map_err(|e| e.context("the map (first argument): "))?;
     let [x, y, z, roll, pitch, yaw] = args.scene_pose.unwrap_or([0.0; 6]);
     let map_from_scene = Pose::new([x, y, z], [roll, pitch, yaw]).to_isometry();
     let row = with_threads(args.run.threads, || {

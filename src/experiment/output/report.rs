@@ -184,7 +184,10 @@ fn headline(
          summary.csv, every run runs.csv. Two methods of a seed map the same scans, so \
          they are compared seed by seed: the second table gives each method's mean \
          difference from <b>{}</b> (method − {}), its 95% interval and the verdict \
-         (paired.csv).</p>",
+         (paired.csv). Higher is better for precision, recall, F1 and ROC AUC; lower for \
+         false-free (truly occupied cells the map calls free: the collision risk), unknown \
+         and Brier; an ANEES of 3 means honest covariances; – : the method propagates \
+         none.</p>",
         experiment.seeds().len(),
         experiment.reference(),
         experiment.reference()
