@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{portable_quickstart, root, sigmap};
+use common::{portable_quickstart, root, sigmap, sigmap_ok};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
@@ -54,6 +54,15 @@ fn sigmap_mapper(name: &str) -> String {
         "-q",
     ]);
     format!("[[mapper]]\nname = \"{name}\"\ncommand = {command}\nmap = \"{{dir}}/map.ot\"\n")
+}
+
+/// Asserts that the CSV file at `path` has a line holding `needle`.
+fn has_row(path: &Path, needle: &str) {
+    let text = std::fs::read_to_string(path).unwrap();
+    assert!(
+        text.lines().any(|l| l.contains(needle)),
+        "{needle} in {text}"
+    );
 }
 
 /// `(cell, seed, method) -> metric -> value` of a runs.csv.
@@ -114,18 +123,13 @@ fn a_mapper_joins_the_sweep_like_sigmaps_own_methods() {
         &sigmap_mapper("recorded"),
     );
     let out = dir.path().join("out");
-    let run = sigmap(&[
+    sigmap_ok(&[
         "run",
         file.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
         "-q",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
     // The same scans through the export (f32 points) and sigmap's recorded
     // ray update: the ray update's rows.
     rows_match_the_ray_update(&out, "recorded", 1e-3);
@@ -295,26 +299,15 @@ fn graph2tree_joins_the_sweep_and_a_killed_run_resumes_identically() {
     let dir = tempfile::tempdir().unwrap();
     let file = small_octomap_compare(dir.path());
     let whole = dir.path().join("whole");
-    let run = sigmap(&[
+    sigmap_ok(&[
         "run",
         file.to_str().unwrap(),
         "--out",
         whole.to_str().unwrap(),
         "-q",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
     rows_match_the_ray_update(&whole, "octomap", 1e-3);
-    let paired = std::fs::read_to_string(whole.join("paired.csv")).unwrap();
-    assert!(
-        paired
-            .lines()
-            .any(|l| l.contains(",ray_update,octomap,f1,")),
-        "{paired}"
-    );
+    has_row(&whole.join("paired.csv"), ",ray_update,octomap,f1,");
     let summary = std::fs::read_to_string(whole.join("summary.csv")).unwrap();
     assert!(summary.contains(",octomap,f1,"), "{summary}");
     assert!(std::fs::read_to_string(whole.join("report.html"))
@@ -381,24 +374,13 @@ fn graph2tree_joins_the_sweep_and_a_killed_run_resumes_identically() {
 fn the_python_example_mapper_runs_in_its_shipped_experiment() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
-    let run = sigmap(&[
+    sigmap_ok(&[
         "run",
         "experiments/python_mapper.toml",
         "--out",
         out.to_str().unwrap(),
         "-q",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
     rows_match_the_ray_update(&out, "python_ray", 1e-5);
-    let paired = std::fs::read_to_string(out.join("paired.csv")).unwrap();
-    assert!(
-        paired
-            .lines()
-            .any(|l| l.contains(",python_ray,ray_update,f1,")),
-        "{paired}"
-    );
+    has_row(&out.join("paired.csv"), ",python_ray,ray_update,f1,");
 }
