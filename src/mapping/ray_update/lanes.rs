@@ -19,12 +19,10 @@ use std::arch::x86_64::*;
 use std::sync::atomic::AtomicU64;
 
 /// [`DenseWalk::begin_hits`], four rays at a time: the rays' ends as
-/// [`RayEnd::of_hit`] finds them, then [`begin_four`].
-///
-/// # Safety
-/// The CPU must have AVX2.
+/// [`RayEnd::of_hit`] finds them, then [`begin_four`]. Compiled for AVX2:
+/// call it where the CPU has it.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn begin_hits(dense: &DenseWalk, hits: &[Point3], walks: &mut Vec<Walk>) {
+pub(super) fn begin_hits(dense: &DenseWalk, hits: &[Point3], walks: &mut Vec<Walk>) {
     let max_range = _mm256_set1_pd(dense.max_range);
     let mut four = hits.chunks_exact(4);
     for hits in &mut four {
@@ -35,8 +33,7 @@ pub(super) unsafe fn begin_hits(dense: &DenseWalk, hits: &[Point3], walks: &mut 
         }
         let within = _mm256_cmp_pd::<_CMP_LE_OQ>(norm(diff), max_range);
         if _mm256_movemask_pd(within) == 0b1111 {
-            // SAFETY: the caller's.
-            unsafe { begin_four(dense, point, 0b1111, walks) };
+            begin_four(dense, point, 0b1111, walks);
         } else {
             // Some beyond max range (rare): one by one.
             let ends = hits
@@ -53,12 +50,10 @@ pub(super) unsafe fn begin_hits(dense: &DenseWalk, hits: &[Point3], walks: &mut 
 }
 
 /// [`DenseWalk::begin_misses`], four rays at a time: the rays' ends as
-/// [`RayEnd::of_miss`] finds them, then [`begin_four`].
-///
-/// # Safety
-/// The CPU must have AVX2.
+/// [`RayEnd::of_miss`] finds them, then [`begin_four`]. Compiled for AVX2:
+/// call it where the CPU has it.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn begin_misses(dense: &DenseWalk, misses: &[Vector3], walks: &mut Vec<Walk>) {
+pub(super) fn begin_misses(dense: &DenseWalk, misses: &[Vector3], walks: &mut Vec<Walk>) {
     let max_range = _mm256_set1_pd(dense.max_range);
     let mut four = misses.chunks_exact(4);
     for misses in &mut four {
@@ -67,8 +62,7 @@ pub(super) unsafe fn begin_misses(dense: &DenseWalk, misses: &[Vector3], walks: 
             let d = _mm256_setr_pd(misses[0][a], misses[1][a], misses[2][a], misses[3][a]);
             point[a] = _mm256_add_pd(_mm256_set1_pd(dense.origin[a]), _mm256_mul_pd(d, max_range));
         }
-        // SAFETY: the caller's.
-        unsafe { begin_four(dense, point, 0, walks) };
+        begin_four(dense, point, 0, walks);
     }
     let ends = four
         .remainder()
@@ -93,12 +87,9 @@ fn norm(v: [__m256d; 3]) -> __m256d {
 /// and the walks' set-up ([`Dda::new`]) with the same operations lane by
 /// lane (a dozen divisions and a square root per ray, four to an
 /// instruction here).
-///
-/// # Safety
-/// The CPU must have AVX2.
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn begin_four(dense: &DenseWalk, point: [__m256d; 3], hit: i32, walks: &mut Vec<Walk>) {
+fn begin_four(dense: &DenseWalk, point: [__m256d; 3], hit: i32, walks: &mut Vec<Walk>) {
     let res = _mm256_set1_pd(dense.tree.resolution());
     let half = dense.tree.resolution() * 0.5;
     let (sign, zero, none) = (
@@ -192,14 +183,13 @@ struct Lanes {
 }
 
 /// Marks the cells of every walk, as [`finish`](super::dense::finish)
-/// does one by one, four at a time ([`mark_lanes`]).
-///
-/// # Safety
-/// The CPU must have AVX2.
+/// does one by one, four at a time ([`mark_lanes`]). Compiled for AVX2:
+/// call it where the CPU has it.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
-    // SAFETY: the CPU has AVX2 (the caller's), and this function is
-    // compiled for it.
+pub(super) fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
+    // SAFETY: `Lanes` needs AVX2, which this function is compiled for and
+    // runs with (a target-feature function is only called where the CPU
+    // has its features).
     unsafe { mark_lanes::<Lanes>(bits, walks) }
 }
 

@@ -26,26 +26,22 @@ struct Lanes {
 }
 
 /// Marks the cells of every walk, as [`finish`] does one by one, eight at
-/// a time ([`mark_lanes`]).
-///
-/// # Safety
-/// The CPU must have AVX-512F.
+/// a time ([`mark_lanes`]). Compiled for AVX-512F: call it where the CPU
+/// has it.
 #[target_feature(enable = "avx512f")]
-pub(super) unsafe fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
-    // SAFETY: the CPU has AVX-512F (the caller's), and this function is
-    // compiled for it.
+pub(super) fn mark_rays(bits: &[AtomicU64], walks: &[Walk]) {
+    // SAFETY: `Lanes` needs AVX-512F, which this function is compiled for
+    // and runs with.
     unsafe { mark_lanes::<Lanes>(bits, walks) }
 }
 
 /// [`mark_rays`] on a bitmap this thread alone holds: each step reads its
 /// eight words with one gather and marks only lanes whose bit is not set
 /// ([`mark_owned`]); ended lanes take the next walks in the same branch,
-/// taken on a few steps in ten where rays crowd.
-///
-/// # Safety
-/// The CPU must have AVX-512F.
+/// taken on a few steps in ten where rays crowd. Compiled for AVX-512F:
+/// call it where the CPU has it.
 #[target_feature(enable = "avx512f")]
-pub(super) unsafe fn mark_rays_exclusive(bits: &mut [AtomicU64], walks: &[Walk]) {
+pub(super) fn mark_rays_exclusive(bits: &mut [AtomicU64], walks: &[Walk]) {
     let bits: &[AtomicU64] = bits;
     if walks.len() < Lanes::WIDTH {
         walks.iter().for_each(|w| finish(bits, *w));
@@ -59,7 +55,7 @@ pub(super) unsafe fn mark_rays_exclusive(bits: &mut [AtomicU64], walks: &[Walk])
     let mut next = Lanes::WIDTH;
     loop {
         unsafe { lanes.step() };
-        let live = unsafe { lanes.live() };
+        let live = lanes.live();
         let unset = unsafe { lanes.unset(bits, live) };
         if live == ALL && unset == 0 {
             continue;
@@ -98,7 +94,7 @@ impl Lanes {
     /// [`finish`](super::dense::finish)).
     #[target_feature(enable = "avx512f")]
     #[inline]
-    unsafe fn live(&self) -> __mmask8 {
+    fn live(&self) -> __mmask8 {
         let before_stop = _mm512_cmpneq_epi64_mask(self.index, self.stop);
         let least = _mm512_min_pd(_mm512_min_pd(self.tx, self.ty), self.tz);
         _mm512_mask_cmp_pd_mask::<_CMP_NGT_UQ>(before_stop, least, self.length)
@@ -191,7 +187,7 @@ impl LaneWalks for Lanes {
     #[target_feature(enable = "avx512f")]
     #[inline]
     unsafe fn done(&self) -> u32 {
-        u32::from(!unsafe { self.live() })
+        u32::from(!self.live())
     }
 
     /// The lanes' cells (bitmap indices).
