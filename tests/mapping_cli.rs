@@ -128,7 +128,10 @@ fn bad_map_requests_exit_2() {
     ]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("use faces, windows or off"), "{stderr}");
+    assert!(
+        stderr.contains("[possible values: off, faces, windows]"),
+        "{stderr}"
+    );
     assert!(!bad.exists());
 }
 
