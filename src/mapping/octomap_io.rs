@@ -172,8 +172,8 @@ pub fn parse(bytes: &[u8], clamp: Clamp) -> std::result::Result<Octree, String> 
         return Err(format!("tree type {id:?} is not OcTree"));
     }
     let resolution = resolution
-        .filter(|r| *r > 0.0)
-        .ok_or("missing or bad `res`")?;
+        .filter(|r| r.is_finite() && *r > 0.0)
+        .ok_or("missing or bad `res` (a positive, finite cell size in metres)")?;
     let size = size.ok_or("missing or bad `size`")?;
     let mut tree = Octree::new(resolution);
     let mut body = Vec::new();

@@ -236,6 +236,21 @@ impl ObjectSpec {
                 let mesh = Mesh::load(&path)
                     .map_err(|e| e.context(format!("{label}(from {}) ", scene.display())))?
                     .scaled(scale);
+                // A workcell lies within the octree's reach at its coarsest
+                // resolution; beyond, the geometry is not a workcell's.
+                let far = mesh
+                    .vertices
+                    .iter()
+                    .map(|v| v.iter().fold(0.0f64, |m, c| m.max(c.abs())))
+                    .fold(0.0f64, f64::max);
+                if far.is_nan() || far > MAX_MESH_REACH {
+                    return Err(bad(format!(
+                        "mesh scale {:?} puts vertices {far:.3e} m from the object's origin: \
+                         a workcell's mesh lies within {} km",
+                        scale.as_slice(),
+                        MAX_MESH_REACH / 1000.0
+                    )));
+                }
                 mesh.check_closed().map_err(|e| Error::input(&path, e))?;
                 let n = mesh.triangles.len();
                 let vertices = mesh.vertices.iter().map(to_parry).collect();
@@ -252,6 +267,10 @@ impl ObjectSpec {
         }
     }
 }
+
+/// The farthest a scaled mesh's vertex may lie from its object's origin
+/// (m): 10 km, past any workcell and within the octree's reach.
+const MAX_MESH_REACH: f64 = 1e4;
 
 impl Scene {
     /// Checks that the workspace fits an octree at `resolution` (its span,

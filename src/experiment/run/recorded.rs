@@ -176,7 +176,8 @@ fn node_layout(node: &ScanNode, step: Option<f64>) -> Result<BeamLayout> {
 
 /// Builds the map of recorded `nodes` (ScanGraph order) with the profile's
 /// range model and covariances: [`recorded_scans`] mapped by the one map
-/// builder; `done(k)` after the k-th node.
+/// builder; `done(k)` after the k-th node. A profile with an absurd pose
+/// error is refused, as an experiment's is.
 pub fn map_recorded(
     nodes: &[ScanNode],
     profile: &ErrorProfile,
@@ -184,6 +185,9 @@ pub fn map_recorded(
     options: &RecordedOptions,
     done: impl Fn(usize) + Sync,
 ) -> Result<Octree> {
+    profile
+        .check_pose_magnitudes("the profile")
+        .map_err(|e| Error::input(&profile.source, e))?;
     let max_range = options.max_range.unwrap_or(f64::INFINITY);
     let (scans, layouts) = recorded_scans(nodes, profile, max_range, options.angular_step)?;
     let view = MapperView {

@@ -117,3 +117,12 @@ fn a_tree_deeper_than_sixteen_levels_is_refused() {
         }
     }
 }
+
+#[test]
+fn a_header_with_a_resolution_that_is_no_number_is_refused() {
+    for res in ["inf", "-inf", "NaN", "0", "-0.1", "1e400"] {
+        let bytes = format!("# Octomap OcTree binary file\nid OcTree\nsize 0\nres {res}\ndata\n");
+        let error = parse(bytes.as_bytes(), Clamp::OCTOMAP).unwrap_err();
+        assert!(error.contains("res"), "{res}: {error}");
+    }
+}

@@ -130,3 +130,26 @@ fn bad_scene_inputs_are_named() {
     let msg = Scene::load(&path).err().unwrap().to_string();
     assert!(msg.contains("open.obj") && msg.contains("open"), "{msg}");
 }
+
+#[test]
+fn a_mesh_scaled_past_any_workcell_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let bunny = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/meshes/bunny.obj");
+    for scale in ["1e200", "[1.0, 1.0, 1e300]"] {
+        let path = write_scene(
+            dir.path(),
+            &format!(
+                "[[object]]\nshape = \"mesh\"\nfile = {:?}\nscale = {scale}\n",
+                bunny.display().to_string()
+            ),
+        );
+        let err = Scene::load(&path)
+            .err()
+            .expect("scene should be rejected")
+            .to_string();
+        assert!(
+            err.contains("scale") && err.contains("km"),
+            "{scale}: {err}"
+        );
+    }
+}

@@ -242,3 +242,34 @@ fn pooling_a_cloud_needs_one_point_per_bin() {
         "{err}"
     );
 }
+
+/// A profile whose pose error is absurd (a variance of infinity) is refused
+/// for recorded scans as it is for an experiment, naming the profile.
+#[test]
+fn recorded_scans_refuse_an_absurd_profile() {
+    let mut profile = ErrorProfile::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/profiles/collaborative_poses.toml"
+    )))
+    .unwrap();
+    profile.arm = ArmError::Pose(Matrix6::identity() * 1e200 * 1e200);
+    let node = ScanNode {
+        id: 0,
+        map_from_sensor: crate::geometry::Isometry3::identity(),
+        points: vec![Point3::new(0.0, 0.0, 1.0)],
+    };
+    let options = RecordedOptions {
+        method: Method::Unscented,
+        resolution: 0.05,
+        max_range: None,
+        angular_step: None,
+    };
+    let err = map_recorded(&[node], &profile, &MapSettings::default(), &options, |_| {})
+        .map(|_| ())
+        .expect_err("refused")
+        .to_string();
+    assert!(
+        err.contains("collaborative_poses.toml") && err.contains("exceeds 1 m"),
+        "{err}"
+    );
+}
