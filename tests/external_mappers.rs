@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{portable_quickstart, root, sigmap, sigmap_ok};
+use common::{portable_quickstart, root, sigmap};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
@@ -56,7 +56,29 @@ fn sigmap_mapper(name: &str) -> String {
     format!("[[mapper]]\nname = \"{name}\"\ncommand = {command}\nmap = \"{{dir}}/map.ot\"\n")
 }
 
-/// Asserts that the CSV file at `path` has a line holding `needle`.
+/// `sigmap run FILE --out OUT -q EXTRA...`.
+fn run_into(file: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ];
+    args.extend_from_slice(extra);
+    sigmap(&args)
+}
+
+/// Asserts that `run` succeeded, showing its stderr if not.
+fn ok(run: std::process::Output) {
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
+
+/// Asserts that the file at `path` has a line holding `needle`.
 fn has_row(path: &Path, needle: &str) {
     let text = std::fs::read_to_string(path).unwrap();
     assert!(
@@ -123,53 +145,56 @@ fn a_mapper_joins_the_sweep_like_sigmaps_own_methods() {
         &sigmap_mapper("recorded"),
     );
     let out = dir.path().join("out");
-    sigmap_ok(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    ok(run_into(&file, &out, &[]));
     // The same scans through the export (f32 points) and sigmap's recorded
     // ray update: the ray update's rows.
     rows_match_the_ray_update(&out, "recorded", 1e-3);
-    let text = |name: &str| std::fs::read_to_string(out.join(name)).unwrap();
-    assert!(
-        text("summary.csv")
-            .lines()
-            .any(|l| l.contains(",recorded,f1,")),
-        "summary.csv"
-    );
-    assert!(
-        text("paired.csv")
-            .lines()
-            .any(|l| l.contains(",recorded,ray_update,f1,")),
-        "paired.csv"
-    );
-    assert!(text("report.html").contains("recorded"), "report.html");
+    has_row(&out.join("summary.csv"), ",recorded,f1,");
+    has_row(&out.join("paired.csv"), ",recorded,ray_update,f1,");
+    has_row(&out.join("report.html"), "recorded");
     assert!(out.join("map_recorded.bt").is_file());
     // A resume reuses the finished runs; a changed mapper is new input.
-    let again = sigmap(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    let again = run_into(&file, &out, &[]);
     assert!(again.status.success());
     let changed = std::fs::read_to_string(&file)
         .unwrap()
         .replace("\"-q\"]", "\"--quiet\"]");
     std::fs::write(&file, changed).unwrap();
-    let stale = sigmap(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    let stale = run_into(&file, &out, &[]);
     assert_eq!(stale.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&stale.stderr).contains("other inputs"));
+}
+
+/// A script the mapper's command names is part of the inputs: rebuilt (its
+/// bytes changed, the experiment file not), a resume refuses the results
+/// and names it.
+#[test]
+fn a_rebuilt_mapper_script_is_new_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let profile = root().join("experiments/profiles/collaborative_poses.toml");
+    let script = dir.path().join("map.sh");
+    let body = format!(
+        "exec {} map --scans \"$1\" --profile {} --method ray_update --resolution \"$2\" \
+         --max-range \"$3\" --out map.ot -q\n",
+        env!("CARGO_BIN_EXE_sigmap"),
+        profile.display()
+    );
+    std::fs::write(&script, &body).unwrap();
+    let mapper = format!(
+        "[[mapper]]\nname = \"script\"\ncommand = {}\nmap = \"map.ot\"\n",
+        array(&["sh", "map.sh", "{scans}", "{resolution}", "{max_range}"])
+    );
+    let file = experiment(dir.path(), "[1]", "[\"ray_update\"]", &mapper);
+    let out = dir.path().join("out");
+    ok(run_into(&file, &out, &[]));
+    std::fs::write(&script, format!("# rebuilt\n{body}")).unwrap();
+    let stale = run_into(&file, &out, &[]);
+    let err = String::from_utf8_lossy(&stale.stderr);
+    assert_eq!(stale.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("other inputs") && err.contains("map.sh"),
+        "{err}"
+    );
 }
 
 /// Each way a mapper fails: exit 2, one line naming the mapper, the seed
@@ -217,15 +242,7 @@ fn a_failing_mapper_is_one_line_and_the_finished_runs_stay() {
         let dir = tempfile::tempdir().unwrap();
         let file = experiment(dir.path(), "[1, 2]", "[\"ray_update\"]", &mapper);
         let out = dir.path().join("out");
-        let run = sigmap(&[
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "-q",
-            "--threads",
-            "1",
-        ]);
+        let run = run_into(&file, &out, &["--threads", "1"]);
         let err = String::from_utf8_lossy(&run.stderr);
         assert_eq!(run.status.code(), Some(2), "{says}: {err}");
         assert_eq!(err.trim().lines().count(), 1, "one line: {err}");
@@ -260,13 +277,7 @@ fn a_map_in_another_frame_is_refused() {
     );
     let file = experiment(dir.path(), "[1]", "[\"ray_update\"]", &mapper);
     let out = dir.path().join("out");
-    let run = sigmap(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    let run = run_into(&file, &out, &[]);
     let err = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{err}");
     assert!(
@@ -299,17 +310,10 @@ fn graph2tree_joins_the_sweep_and_a_killed_run_resumes_identically() {
     let dir = tempfile::tempdir().unwrap();
     let file = small_octomap_compare(dir.path());
     let whole = dir.path().join("whole");
-    sigmap_ok(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        whole.to_str().unwrap(),
-        "-q",
-    ]);
+    ok(run_into(&file, &whole, &[]));
     rows_match_the_ray_update(&whole, "octomap", 1e-3);
     has_row(&whole.join("paired.csv"), ",ray_update,octomap,f1,");
-    let summary = std::fs::read_to_string(whole.join("summary.csv")).unwrap();
-    assert!(summary.contains(",octomap,f1,"), "{summary}");
+    has_row(&whole.join("summary.csv"), ",octomap,f1,");
     assert!(std::fs::read_to_string(whole.join("report.html"))
         .unwrap()
         .contains("octomap"));
@@ -339,18 +343,7 @@ fn graph2tree_joins_the_sweep_and_a_killed_run_resumes_identically() {
         !killed.join("summary.csv").exists(),
         "killed before the end"
     );
-    let resumed = sigmap(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        killed.to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(
-        resumed.status.success(),
-        "{}",
-        String::from_utf8_lossy(&resumed.stderr)
-    );
+    ok(run_into(&file, &killed, &[]));
     for name in [
         "runs.csv",
         "summary.csv",
@@ -374,13 +367,11 @@ fn graph2tree_joins_the_sweep_and_a_killed_run_resumes_identically() {
 fn the_python_example_mapper_runs_in_its_shipped_experiment() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
-    sigmap_ok(&[
-        "run",
-        "experiments/python_mapper.toml",
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    ok(run_into(
+        &root().join("experiments/python_mapper.toml"),
+        &out,
+        &[],
+    ));
     rows_match_the_ray_update(&out, "python_ray", 1e-5);
     has_row(&out.join("paired.csv"), ",python_ray,ray_update,f1,");
 }

@@ -69,18 +69,11 @@ const BT_NOTE: &str = "note: a .bt holds only occupied and free (OctoMap's log-o
 /// Refuses arguments in each other's places: the map (an OctoMap `.bt` or
 /// `.ot`) comes first, the experiment (`.toml`) second.
 fn check_roles(args: &ScoreArgs) -> Result<()> {
-    let ext = |p: &std::path::Path| {
-        p.extension()
-            .map(|e| e.to_string_lossy().to_lowercase())
-            .unwrap_or_default()
-    };
-    let map_ext = ext(&args.map);
-    let swapped = map_ext == "toml"
-        && args
-            .experiment
-            .as_ref()
-            .is_some_and(|e| matches!(ext(e).as_str(), "bt" | "ot"));
-    if swapped || map_ext == "toml" {
+    if args
+        .map
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+    {
         return Err(Error::Usage(format!(
             "{} is an experiment file where the map goes: the map (.bt or .ot) comes first, \
              `sigmap score MAP EXPERIMENT`",

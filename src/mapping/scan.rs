@@ -155,11 +155,6 @@ impl BeamGrid {
             .map_or(layout.directions.len(), Vec::len)
     }
 
-    /// Whether it bins no beam.
-    pub fn is_empty(&self, layout: &BeamLayout) -> bool {
-        self.len(layout) == 0
-    }
-
     /// The scan's index of the grid's `k`-th beam.
     #[inline]
     pub fn beam(&self, k: usize) -> usize {

@@ -139,6 +139,11 @@ pub fn expect_over_shared_motion(
     Ok(stats)
 }
 
+/// Whether `leaf` holds more than the free floor: what the step spreads.
+fn above_floor(leaf: &Leaf, floor: f32) -> bool {
+    leaf.value > floor + 1e-4
+}
+
 /// Cells a leaf of `depth` spans per axis.
 fn span(depth: u8) -> i64 {
     1i64 << (DEPTH - depth)
@@ -187,7 +192,7 @@ impl Region {
         // Box of the cells that are not at the free floor.
         let mut lo = [i64::MAX; 3];
         let mut hi = [i64::MIN; 3];
-        for leaf in leaves.iter().filter(|l| l.value > floor + 1e-4) {
+        for leaf in leaves.iter().filter(|l| above_floor(l, floor)) {
             for a in 0..3 {
                 lo[a] = lo[a].min(leaf.key.0[a] as i64);
                 hi[a] = hi[a].max(leaf.key.0[a] as i64 + span(leaf.depth) - 1);
@@ -272,7 +277,7 @@ impl Region {
         let blocks = self.blocks;
         let mut live = vec![false; (blocks[0] * blocks[1] * blocks[2]) as usize];
         let reach_blocks = (self.reach + BLOCK - 1) / BLOCK;
-        for leaf in leaves.iter().filter(|l| l.value > self.floor + 1e-4) {
+        for leaf in leaves.iter().filter(|l| above_floor(l, self.floor)) {
             let k0 = leaf.key.0.map(|v| v as i64);
             let b_lo =
                 [0, 1, 2].map(|a| ((k0[a] - self.target_lo[a]) / BLOCK - reach_blocks).max(0));

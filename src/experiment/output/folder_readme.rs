@@ -108,4 +108,24 @@ mod tests {
         }
         assert!(text.contains("| `false_free_rate` |") && text.contains("| lower |"));
     }
+
+    #[test]
+    fn a_readme_sigmap_did_not_write_is_left_alone() {
+        let experiment = Experiment::load(Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/experiments/quickstart.toml"
+        )))
+        .unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let readme = dir.path().join("README.md");
+        std::fs::write(&readme, "# My notes\n").unwrap();
+        write_folder_readme(dir.path(), &experiment).unwrap();
+        assert_eq!(std::fs::read_to_string(&readme).unwrap(), "# My notes\n");
+        std::fs::write(&readme, format!("{TITLE}old`\n")).unwrap();
+        write_folder_readme(dir.path(), &experiment).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&readme).unwrap(),
+            folder_readme(&experiment)
+        );
+    }
 }

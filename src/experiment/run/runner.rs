@@ -12,7 +12,7 @@ use crate::geometry::{Isometry3, Matrix3, Vector3};
 use crate::mapping::measured::{hit_point, measured_ranges};
 use crate::mapping::method::{propagator, scan_chain};
 use crate::mapping::pooling::Pooled;
-use crate::mapping::{build_map_with, BuildExtras, Method, Octree};
+use crate::mapping::{build_map_with, BuildExtras, Method, Octree, TreeStats};
 use crate::sim::scan::ScanTruth;
 use crate::uncertainty::consistency::{nees, ConsistencyReport};
 use crate::uncertainty::{Propagator, RangeModel};
@@ -110,14 +110,6 @@ pub fn run_seed(
         let model_s = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let scores: MapScores = score_map(&map, truth, &seed_run.observable);
-        if let RunMethod::External(mapper) = method {
-            check_frame(&scores, &map).map_err(|what| {
-                Error::Usage(format!(
-                    "mapper {} (cell {cell}, seed {seed}): {what}",
-                    mapper.name
-                ))
-            })?;
-        }
         let pairs = method.own().map_or_else(Vec::new, |m| seed_run.errors(m));
         // Points of one viewpoint share its pose error: the χ² bounds of
         // the consistency report do not apply to the run's points as one.
@@ -126,6 +118,14 @@ pub fn run_seed(
         let nees_point = pairs.first().map_or(f64::NAN, |(e, c)| nees(e, c));
         let score_s = start.elapsed().as_secs_f64();
         let stats = map.stats();
+        if let RunMethod::External(mapper) = method {
+            check_frame(&scores, &stats).map_err(|what| {
+                Error::Usage(format!(
+                    "mapper {} (cell {cell}, seed {seed}): {what}",
+                    mapper.name
+                ))
+            })?;
+        }
         let measured = Measured {
             scores: &scores,
             consistency: consistency.as_ref(),
@@ -250,8 +250,8 @@ impl<'a> SeedRun<'a> {
 
 /// Refuses an external map that knows almost none of the run's observable
 /// cells though it knows cells: it is in another frame than the export's.
-fn check_frame(scores: &MapScores, map: &Octree) -> std::result::Result<(), String> {
-    let known_leaves = map.stats().leaves;
+fn check_frame(scores: &MapScores, stats: &TreeStats) -> std::result::Result<(), String> {
+    let known_leaves = stats.leaves;
     if known_leaves > 0 && scores.unknown_fraction > 0.99 {
         return Err(format!(
             "its map knows {known_leaves} cells but {:.1}% of the run's observable cells are \
