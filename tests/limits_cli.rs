@@ -174,6 +174,11 @@ fn absurd_sizes_are_refused_before_any_work() {
     text.push_str("\n[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [2, 2.0]\n");
     std::fs::write(&sweep, text).unwrap();
     run(&sweep, "lists the value 2 more than once");
+    let sweep = experiment(d, "bad_reference", "seed = 1", "seed = 1");
+    let mut text = std::fs::read_to_string(&sweep).unwrap();
+    text.push_str("\n[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [0, 2]\nreference = 1\n");
+    std::fs::write(&sweep, text).unwrap();
+    run(&sweep, "reference = 1 is not one of its values (0, 2)");
     let huge = experiment(d, "huge_scale", "seed = 1", "seed = 1");
     let mut text = std::fs::read_to_string(&huge).unwrap();
     text.push_str("\n[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [1e200]\n");

@@ -155,17 +155,21 @@ fn the_quickstart_pairs_every_method_with_the_ray_update() {
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("cell,method,reference,metric,n,mean,ci95_low,ci95_high,verdict")
+        Some("cell,method,reference,reference_cell,metric,n,mean,ci95_low,ci95_high,verdict")
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let row = |method: &str, metric: &str| {
         rows.iter()
-            .find(|r| r[1] == method && r[3] == metric)
+            .find(|r| r[1] == method && r[4] == metric)
             .unwrap_or_else(|| panic!("no row {method} {metric}"))
     };
     for method in ["blind", "unscented"] {
         let false_free = row(method, "false_free_rate");
-        assert_eq!((false_free[2], false_free[4]), ("ray_update", "3"));
+        // Two methods of the same cell: the reference cell is the cell.
+        assert_eq!(
+            (false_free[2], false_free[3], false_free[5]),
+            ("ray_update", false_free[0], "3")
+        );
         // The same difference runs.csv gives, seed by seed.
         let runs = std::fs::read_to_string(dir.path().join("runs.csv")).unwrap();
         let column = runs
@@ -188,14 +192,14 @@ fn the_quickstart_pairs_every_method_with_the_ray_update() {
             .map(|s| value(method, s) - value("ray_update", s))
             .sum::<f64>()
             / 3.0;
-        let written: f64 = false_free[5].parse().unwrap();
+        let written: f64 = false_free[6].parse().unwrap();
         assert!((written - mean).abs() < 1e-12, "{written} vs {mean}");
         // The README's claim: the OPDF maps call fewer occupied cells free.
-        assert_eq!(false_free[8], "better", "{false_free:?}");
+        assert_eq!(false_free[9], "better", "{false_free:?}");
     }
     // No row of the reference against itself; none on ANEES, which the ray
     // update does not have.
-    assert!(rows.iter().all(|r| r[1] != "ray_update" && r[3] != "anees"));
+    assert!(rows.iter().all(|r| r[1] != "ray_update" && r[4] != "anees"));
     let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
     assert!(html.contains("<table class=\"paired\">") && html.contains("against ray_update"));
 }
@@ -471,6 +475,29 @@ fn a_resume_refuses_results_of_other_inputs() {
         );
         assert!(call(&["--fresh"]).status.success());
     }
+    // A folder fingerprinted with the old 64-bit checksum, however well its
+    // inputs match, is not resumed from.
+    let manifest = out.join("run.toml");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("fingerprint = "))
+        .unwrap();
+    std::fs::write(
+        &manifest,
+        text.replace(line, "fingerprint = \"4f1c0a9be2d37a65\""),
+    )
+    .unwrap();
+    let refused = call(&[]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("4f1c0a9be2d37a65") && stderr.contains("SHA-256"),
+        "{stderr}"
+    );
+    assert!(call(&["--fresh"]).status.success());
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    assert!(text.contains("fingerprint = \"sha256:"), "{text}");
 }
 
 /// `sigmap run FILE --out OUT -q`, and its `runs.csv` rows.

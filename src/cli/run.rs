@@ -146,10 +146,12 @@ fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
         .filter(|&m| m != experiment.reference())
     {
         for (metric, title, digits) in HEADLINE {
-            let Some(p) = paired
-                .iter()
-                .find(|p| p.cell == first && p.method == method.as_str() && p.metric == metric)
-            else {
+            let Some(p) = paired.iter().find(|p| {
+                p.is_between_methods()
+                    && p.cell == first
+                    && p.method == method.as_str()
+                    && p.metric == metric
+            }) else {
                 continue;
             };
             println!(

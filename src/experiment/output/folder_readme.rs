@@ -73,7 +73,7 @@ const FILES: &str = "## Files\n\n\
 |---|---|\n\
 | `runs.csv` | one row per sweep cell, seed and method: every metric (columns below) |\n\
 | `summary.csv` | per cell, method and metric: `n`, mean and 95% interval over the seeds (Student t, cut to the metric's range) |\n\
-| `paired.csv` | per cell, method and metric, the method against the reference seed by seed: `n`, mean difference (method − reference), 95% interval, verdict `better` / `worse` / `within_noise` by the metric's direction |\n\
+| `paired.csv` | per cell, method and metric, the method against the reference seed by seed: `n`, mean difference (method − reference), 95% interval, verdict `better` / `worse` / `within_noise` by the metric's direction; then each method against itself at a sweep axis's `reference` value (the row's `reference_cell`) |\n\
 | `timings.csv` | seconds to simulate, model and score each run (they vary from run to run) |\n\
 | `map_<method>.bt` | the first run's map of each method (OctoMap binary tree; open with octovis) |\n\
 | `slice.svg` | a horizontal slice through the first run's maps: each cell's class against the truth |\n\

@@ -235,31 +235,66 @@ fn headline(
     }
 }
 
-/// The paired table of one cell (nothing with a single method).
+/// The paired tables of one cell: each method against the reference
+/// (nothing with a single method), then each method against itself at a
+/// sweep axis's reference value (when the cell is off it).
 fn paired_table(html: &mut String, experiment: &Experiment, cell: &str, paired: &[PairedRow]) {
-    if experiment.methods().len() < 2 {
-        return;
+    let mine = |p: &&PairedRow| p.cell == cell;
+    if experiment.methods().len() >= 2 {
+        let rows: Vec<(String, Vec<&PairedRow>)> = experiment
+            .methods()
+            .iter()
+            .filter(|&m| m != experiment.reference())
+            .map(|m| {
+                let of_method = paired
+                    .iter()
+                    .filter(mine)
+                    .filter(|p| p.is_between_methods() && p.method == m.as_str());
+                (m.as_str().to_string(), of_method.collect())
+            })
+            .collect();
+        let header = format!("against {}", experiment.reference());
+        paired_rows(html, &header, &rows);
     }
-    let _ = write!(
-        html,
-        "<table class=\"paired\">\n<tr><th>against {}</th>",
-        experiment.reference()
-    );
+    let mut across: Vec<&str> = Vec::new();
+    for p in paired
+        .iter()
+        .filter(mine)
+        .filter(|p| !p.is_between_methods())
+    {
+        if !across.contains(&p.reference_cell.as_str()) {
+            across.push(&p.reference_cell);
+        }
+    }
+    for reference_cell in across {
+        let rows: Vec<(String, Vec<&PairedRow>)> = experiment
+            .methods()
+            .iter()
+            .map(|m| {
+                let of_method = paired
+                    .iter()
+                    .filter(mine)
+                    .filter(|p| p.reference_cell == reference_cell && p.method == m.as_str());
+                (m.as_str().to_string(), of_method.collect())
+            })
+            .collect();
+        let header = format!("against itself at {reference_cell}");
+        paired_rows(html, &escape(&header), &rows);
+    }
+}
+
+/// One paired table: a row per label, each headline metric's mean per-seed
+/// difference, interval and verdict.
+fn paired_rows(html: &mut String, header: &str, rows: &[(String, Vec<&PairedRow>)]) {
+    let _ = write!(html, "<table class=\"paired\">\n<tr><th>{header}</th>");
     for (_, title, _) in HEADLINE {
         let _ = write!(html, "<th>{title}</th>");
     }
     html.push_str("</tr>\n");
-    for method in experiment
-        .methods()
-        .iter()
-        .filter(|&m| m != experiment.reference())
-    {
-        let _ = write!(html, "<tr><td>{}</td>", method.as_str());
+    for (label, of_label) in rows {
+        let _ = write!(html, "<tr><td>{}</td>", escape(label));
         for (metric, _, digits) in HEADLINE {
-            let row = paired
-                .iter()
-                .find(|p| p.cell == cell && p.method == method.as_str() && p.metric == metric);
-            match row {
+            match of_label.iter().find(|p| p.metric == metric) {
                 Some(p) if p.mean.is_finite() => {
                     let _ = write!(
                         html,

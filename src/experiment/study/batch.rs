@@ -10,9 +10,11 @@ use crate::experiment::run::runner::{
     ground_truth, read_rows, run_seed, write_rows, RunRow, TimingRow,
 };
 use crate::experiment::study::journal::{
-    fingerprint, journal_record, read_journal, Inputs, Wanted,
+    fingerprint, journal_record, read_journal, Inputs, Wanted, FINGERPRINT_SCHEME,
 };
-use crate::experiment::study::summary::{paired, summarise, PairedRow, SummaryRow};
+use crate::experiment::study::summary::{
+    paired, paired_across_axes, summarise, PairedRow, SummaryRow,
+};
 use crate::experiment::Experiment;
 use crate::experiment::RunMethod;
 use crate::experiment::{charts::results, output::report};
@@ -174,7 +176,17 @@ fn check_same_inputs(out: &Path, inputs: &Inputs, (shard, shards): (usize, usize
     }
     let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
     let version = env!("CARGO_PKG_VERSION");
-    let what = if manifest.version != version {
+    let what = if !manifest.fingerprint.starts_with(FINGERPRINT_SCHEME) {
+        return Err(Error::input(
+            &manifest_path,
+            format!(
+                "{OTHER_INPUTS}: their fingerprint '{}' is an older checksum that cannot \
+                 vouch for their inputs (sigmap now fingerprints with SHA-256): rerun into \
+                 another folder (--out) or remove this one",
+                manifest.fingerprint
+            ),
+        ));
+    } else if manifest.version != version {
         format!("sigmap {} wrote them, this is {version}", manifest.version)
     } else if manifest.shard != format!("{shard}/{shards}") {
         format!("they are shard {}, not {shard}/{shards}", manifest.shard)
@@ -356,7 +368,13 @@ fn finalize(
     write_rows(&out.join("timings.csv"), &timings)?;
     let summary = summarise(&rows, labels, methods);
     write_rows(&out.join("summary.csv"), &summary)?;
-    let paired = paired(&rows, labels, methods, experiment.reference());
+    let mut paired = paired(&rows, labels, methods, experiment.reference());
+    paired.extend(paired_across_axes(
+        &rows,
+        experiment.sweep(),
+        &experiment.cells(),
+        methods,
+    ));
     write_rows(&out.join("paired.csv"), &paired)?;
     let mut charts = results::plot_scores(
         &out.join("scores.svg"),

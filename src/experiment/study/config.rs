@@ -32,6 +32,12 @@ pub struct SweepAxis {
     /// Its values: numbers, or strings for string fields such as
     /// `experiment.error_profile` or `experiment.scene`.
     pub values: Vec<SweepValue>,
+    /// One of `values` that the others are paired against, method by method
+    /// and seed by seed (`paired.csv` rows whose `reference_cell` differs
+    /// from their `cell`): what changing this field alone does to each
+    /// method. Without it the axis is only swept.
+    #[serde(default)]
+    pub reference: Option<SweepValue>,
 }
 
 /// A sweep value.

@@ -6,10 +6,12 @@ use crate::error::{Error, Result};
 use crate::experiment::run::runner::{RunRow, TimingRow};
 use crate::experiment::Experiment;
 use crate::experiment::RunMethod;
+use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-/// FNV-1a, 64 bits: a stable hash (the same on every machine and version).
+/// FNV-1a, 64 bits: the journal's check that a record is whole (a torn
+/// write, not a forgery, is what it guards against).
 fn fnv(hash: u64, bytes: &[u8]) -> u64 {
     bytes
         .iter()
@@ -18,11 +20,17 @@ fn fnv(hash: u64, bytes: &[u8]) -> u64 {
 
 const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
-/// What the runs of an experiment read: one hash over everything, and one
+/// The prefix of a fingerprint sigmap trusts; a results folder whose
+/// `run.toml` holds another (the FNV-1a checksums of older versions) is
+/// refused on resume.
+pub const FINGERPRINT_SCHEME: &str = "sha256:";
+
+/// What the runs of an experiment read: one SHA-256 over everything, and one
 /// per input file (to say which changed).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Inputs {
-    /// Hash of every file, the sweep cells and sigmap's version.
+    /// `sha256:` and the SHA-256 of sigmap's version, every cell's sweep
+    /// values and every file's length and bytes.
     pub fingerprint: String,
     /// Each file read (in first-use order, once) and its hash.
     pub files: Vec<(String, String)>,
@@ -52,10 +60,17 @@ impl Inputs {
 /// files and robot description, its external mappers' programs and
 /// scripts, and sigmap's version. Fails when a mapper's program is missing.
 pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
-    let mut hash = fnv(FNV_OFFSET, env!("CARGO_PKG_VERSION").as_bytes());
+    let mut hash = Sha256::new();
+    let mut field = |bytes: &[u8]| {
+        // Each field framed by its length: no two inputs hash alike by
+        // moving bytes from one field to the next.
+        hash.update((bytes.len() as u64).to_le_bytes());
+        hash.update(bytes);
+    };
+    field(env!("CARGO_PKG_VERSION").as_bytes());
     let mut files: Vec<(String, String)> = Vec::new();
     for cell in cells {
-        hash = fnv(hash, Experiment::cell_label(cell.cell()).as_bytes());
+        field(Experiment::cell_label(cell.cell()).as_bytes());
         let mut paths: Vec<PathBuf> = [cell.source(), &cell.profile().source, &cell.robot().source]
             .into_iter()
             .chain(cell.scene().inputs.iter().map(PathBuf::as_path))
@@ -72,17 +87,21 @@ pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
             let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
             // Content only: the same files named from another folder match.
             let name = path.to_string_lossy().into_owned();
-            hash = fnv(hash, &(bytes.len() as u64).to_le_bytes());
-            hash = fnv(hash, &bytes);
+            field(&bytes);
             if !files.iter().any(|(p, _)| *p == name) {
-                files.push((name, format!("{:016x}", fnv(FNV_OFFSET, &bytes))));
+                files.push((name, hex(&Sha256::digest(&bytes))));
             }
         }
     }
     Ok(Inputs {
-        fingerprint: format!("{hash:016x}"),
+        fingerprint: format!("{FINGERPRINT_SCHEME}{}", hex(&hash.finalize())),
         files,
     })
+}
+
+/// Lower-case hex of a digest.
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// What an experiment asks for: its sweep cells (labels), seeds and methods.

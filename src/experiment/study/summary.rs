@@ -1,10 +1,12 @@
 //! What a study concludes from its runs: per method the mean of each
 //! summarised metric over the seeds (`summary.csv`), and per method the
-//! per-seed differences against the reference method (`paired.csv`), each
-//! with its 95% Student t interval (docs/math.md §7.4).
+//! per-seed differences against the reference method, and against itself at
+//! a sweep axis's reference value (`paired.csv`), each with its 95% Student t
+//! interval (docs/math.md §7.4).
 
+use crate::experiment::study::config::{SweepAxis, SweepValue};
 use crate::experiment::study::metrics::{Better, Metric, RunRow, METRICS};
-use crate::experiment::RunMethod;
+use crate::experiment::{Experiment, RunMethod};
 use crate::uncertainty::consistency::student_t_quantile;
 use serde::{Deserialize, Serialize};
 
@@ -128,7 +130,10 @@ impl Verdict {
 }
 
 /// One row of `paired.csv`: a method against the reference on one metric of
-/// one sweep cell, over the seeds where both have a finite value.
+/// one sweep cell, over the seeds where both have a finite value. The
+/// reference is another method in the same cell, or (a `[[sweep]]` axis with
+/// a `reference` value) the same method in the cell that differs only on
+/// that axis.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct PairedRow {
     /// The sweep cell.
@@ -137,6 +142,9 @@ pub struct PairedRow {
     pub method: String,
     /// The method it is compared with.
     pub reference: String,
+    /// The cell of the reference: `cell` itself when two methods are
+    /// compared, the cell at the axis's reference value otherwise.
+    pub reference_cell: String,
     /// The metric (a `runs.csv` column).
     pub metric: String,
     /// Seeds paired.
@@ -230,7 +238,12 @@ pub fn paired(
                 let difference =
                     PairedDifference::of(&of(method, index), &of(reference, index), metric.better);
                 if let Some(difference) = difference {
-                    out.push(paired_row(cell, (method, reference), metric, difference));
+                    out.push(paired_row(
+                        (cell, cell),
+                        (method, reference),
+                        metric,
+                        difference,
+                    ));
                 }
             }
         }
@@ -238,8 +251,75 @@ pub fn paired(
     out
 }
 
+/// For every sweep axis with a `reference` value, every cell off that value
+/// and every method: the method against itself in the cell that differs only
+/// on that axis, metric by metric (rows in axis, cell, method order). A
+/// metric no seed pairs on has no row.
+pub fn paired_across_axes(
+    rows: &[RunRow],
+    axes: &[SweepAxis],
+    cells: &[Vec<(String, SweepValue)>],
+    methods: &[RunMethod],
+) -> Vec<PairedRow> {
+    let mut out = Vec::new();
+    let of = |cell: &str, method: &RunMethod, index: usize| -> Vec<(u64, f64)> {
+        let mine = rows
+            .iter()
+            .filter(|r| r.cell == cell && r.method == method.as_str());
+        values_by_seed(mine, index)
+    };
+    for axis in axes {
+        let Some(reference_value) = &axis.reference else {
+            continue;
+        };
+        for cell in cells {
+            let Some(at) = cell.iter().position(|(field, _)| field == &axis.field) else {
+                continue;
+            };
+            if &cell[at].1 == reference_value {
+                continue;
+            }
+            let mut reference_cell = cell.clone();
+            reference_cell[at].1 = reference_value.clone();
+            let (label, reference_label) = (
+                Experiment::cell_label(cell),
+                Experiment::cell_label(&reference_cell),
+            );
+            for method in methods {
+                for (index, metric) in METRICS.iter().enumerate() {
+                    if !metric.summarised() {
+                        continue;
+                    }
+                    let difference = PairedDifference::of(
+                        &of(&label, method, index),
+                        &of(&reference_label, method, index),
+                        metric.better,
+                    );
+                    if let Some(difference) = difference {
+                        out.push(paired_row(
+                            (&label, &reference_label),
+                            (method, method),
+                            metric,
+                            difference,
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+impl PairedRow {
+    /// Whether it compares two methods of one cell (not one method across
+    /// an axis).
+    pub fn is_between_methods(&self) -> bool {
+        self.reference_cell == self.cell
+    }
+}
+
 fn paired_row(
-    cell: &str,
+    (cell, reference_cell): (&str, &str),
     (method, reference): (&RunMethod, &RunMethod),
     metric: &Metric,
     difference: PairedDifference,
@@ -248,6 +328,7 @@ fn paired_row(
         cell: cell.into(),
         method: method.as_str().into(),
         reference: reference.as_str().into(),
+        reference_cell: reference_cell.into(),
         metric: metric.name.into(),
         n: difference.n,
         mean: difference.mean,

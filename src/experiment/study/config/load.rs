@@ -91,7 +91,8 @@ fn referred(path: &Path, key: &str, value: &Path) -> Result<PathBuf> {
     ))
 }
 
-/// Every sweep axis has values, none twice, and no field is swept twice.
+/// Every sweep axis has values, none twice, no field is swept twice, and a
+/// reference value is one of its axis's values.
 fn check_sweep_axes(sweeps: &[SweepAxis]) -> std::result::Result<(), String> {
     for (i, axis) in sweeps.iter().enumerate() {
         if axis.values.is_empty() {
@@ -106,6 +107,15 @@ fn check_sweep_axes(sweeps: &[SweepAxis]) -> std::result::Result<(), String> {
                 "[[sweep]] '{}' lists the value {label} more than once",
                 axis.field
             ));
+        }
+        if let Some(reference) = &axis.reference {
+            if !axis.values.contains(reference) {
+                return Err(format!(
+                    "[[sweep]] '{}': reference = {reference} is not one of its values ({})",
+                    axis.field,
+                    labels.join(", ")
+                ));
+            }
         }
     }
     Ok(())

@@ -193,3 +193,91 @@ fn t_quantiles() {
         (crate::uncertainty::consistency::student_t_quantile(1000.0, 0.975) - 1.962).abs() < 1e-3
     );
 }
+
+#[test]
+fn an_axis_with_a_reference_pairs_each_method_with_itself_across_it() {
+    use crate::mapping::Method::*;
+    let number = |v: f64| SweepValue::Number(v);
+    let text = |t: &str| SweepValue::Text(t.into());
+    let axes = vec![
+        SweepAxis {
+            field: "pose_error_scale".into(),
+            values: vec![number(0.0), number(2.0)],
+            reference: None,
+        },
+        SweepAxis {
+            field: "experiment.beam_pooling".into(),
+            values: vec![text("off"), text("faces"), text("windows")],
+            reference: Some(text("off")),
+        },
+    ];
+    let cells: Vec<Vec<(String, SweepValue)>> = [0.0, 2.0]
+        .iter()
+        .flat_map(|&scale| {
+            ["off", "faces", "windows"].map(|mode| {
+                vec![
+                    ("pose_error_scale".to_string(), number(scale)),
+                    ("experiment.beam_pooling".to_string(), text(mode)),
+                ]
+            })
+        })
+        .collect();
+    // F1 by cell: faces adds 0.05 + 0.01·seed to the unscented map and
+    // nothing to the ray update; windows takes 0.02 from both.
+    let mut rows = Vec::new();
+    for cell in &cells {
+        let label = Experiment::cell_label(cell);
+        let mode = cell[1].1.to_string();
+        for seed in 1..=4u64 {
+            let s = seed as f64;
+            let (unscented, ray) = match mode.as_str() {
+                "faces" => (0.85 + 0.05 + 0.01 * s, 0.80 + 0.001 * s),
+                "windows" => (0.83 + 0.001 * s, 0.78 + 0.001 * s),
+                _ => (0.85 + 0.001 * s, 0.80 + 0.001 * s),
+            };
+            rows.push(row(&label, seed, "unscented", unscented, 3.0));
+            rows.push(row(&label, seed, "ray_update", ray, f64::NAN));
+        }
+    }
+    let methods = [Unscented, RayUpdate].map(RunMethod::Own);
+    let out = paired_across_axes(&rows, &axes, &cells, &methods);
+    // Two cells off the reference per scale, two methods; the ray update
+    // has no ANEES.
+    let summarised = METRICS.iter().filter(|m| m.summarised()).count();
+    assert_eq!(out.len(), 2 * 2 * (2 * summarised - 1));
+    assert!(out.iter().all(|r| !r.is_between_methods()));
+    assert!(out.iter().all(|r| r.method == r.reference));
+    let f1 = |cell: &str, method: &str| {
+        out.iter()
+            .find(|r| r.cell == cell && r.method == method && r.metric == "f1")
+            .unwrap()
+    };
+    let faces = "pose_error_scale=2;experiment.beam_pooling=faces";
+    let got = f1(faces, "unscented");
+    assert_eq!(
+        got.reference_cell,
+        "pose_error_scale=2;experiment.beam_pooling=off"
+    );
+    // Differences 0.05 + 0.009·seed, seeds 1–4: mean 0.0725.
+    assert!((got.mean - 0.0725).abs() < 1e-12, "{}", got.mean);
+    assert_eq!(got.verdict, Verdict::Better);
+    let got = f1(faces, "ray_update");
+    assert!(got.mean.abs() < 1e-12);
+    assert_eq!(got.verdict, Verdict::WithinNoise);
+    let got = f1(
+        "pose_error_scale=0;experiment.beam_pooling=windows",
+        "ray_update",
+    );
+    assert!((got.mean + 0.02).abs() < 1e-12);
+    assert_eq!(got.verdict, Verdict::Worse);
+    // Without a reference value the axis gives no rows.
+    let unreferenced: Vec<SweepAxis> = axes
+        .iter()
+        .cloned()
+        .map(|a| SweepAxis {
+            reference: None,
+            ..a
+        })
+        .collect();
+    assert!(paired_across_axes(&rows, &unreferenced, &cells, &methods).is_empty());
+}
