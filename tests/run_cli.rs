@@ -379,6 +379,42 @@ fn shards_merge_into_the_one_machine_result() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("missing"));
     let out = sigmap(&["run", "experiments/quickstart.toml", "--shard", "3/2"]);
     assert_eq!(out.status.code(), Some(2));
+    // A shard's runs.csv with a row the experiment does not define (seed
+    // 9), a row twice, or the same shard given twice: refused, naming the
+    // file and the row, and nothing merged.
+    let merge = |dirs: &[&std::path::Path], says: &[&str]| {
+        let into = dir.path().join("refused");
+        let mut args = vec!["merge", "experiments/quickstart.toml"];
+        args.extend(dirs.iter().map(|d| d.to_str().unwrap()));
+        args.extend(["--out", into.to_str().unwrap()]);
+        let out = sigmap(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        for s in says {
+            assert!(stderr.contains(s), "{s} in {stderr}");
+        }
+        assert!(!into.join("runs.csv").exists());
+    };
+    let runs = a.join("runs.csv");
+    let original = std::fs::read_to_string(&runs).unwrap();
+    let last = original.lines().last().unwrap();
+    let mut fields: Vec<&str> = last.split(',').collect();
+    fields[1] = "9";
+    std::fs::write(&runs, format!("{original}{}\n", fields.join(","))).unwrap();
+    let line = original.lines().count() + 1;
+    merge(
+        &[&a, &b],
+        &[
+            "shard1/runs.csv",
+            &format!("line {line}"),
+            "seed 9",
+            "not a run",
+        ],
+    );
+    std::fs::write(&runs, format!("{original}{last}\n")).unwrap();
+    merge(&[&a, &b], &["shard1/runs.csv", "repeats a run"]);
+    std::fs::write(&runs, &original).unwrap();
+    merge(&[&a, &b, &a], &["shard 1/2 is given twice"]);
     let manifest = std::fs::read_to_string(b.join("run.toml"))
         .unwrap()
         .replace("quickstart", "paper");

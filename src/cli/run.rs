@@ -4,7 +4,8 @@
 use super::{progress_bar, with_threads, MergeArgs, RunArgs};
 use crate::error::Result;
 use crate::experiment::output::report::HEADLINE;
-use crate::experiment::study::batch::{merge_shards, run_experiment, RunOptions, OTHER_INPUTS};
+use crate::experiment::study::batch::{run_experiment, RunOptions, OTHER_INPUTS};
+use crate::experiment::study::merge::merge_shards;
 use crate::experiment::study::summary::{PairedRow, SummaryRow};
 use crate::experiment::Experiment;
 use indicatif::ProgressBar;

@@ -344,7 +344,7 @@ pub struct Study {
 /// method as the experiment lists them), writes runs.csv, timings.csv,
 /// summary.csv, paired.csv and the summary's charts, and returns the study
 /// and the charts written.
-fn finalize(
+pub(super) fn finalize(
     out: &Path,
     experiment: &Experiment,
     labels: &[String],
@@ -397,7 +397,7 @@ fn finalize(
 
 /// Writes `report.html` from the folder's summary and `charts`, with the
 /// first run's slice when the folder holds it.
-fn write_report_with_slice(
+pub(super) fn write_report_with_slice(
     out: &Path,
     experiment: &Experiment,
     study: &Study,
@@ -414,7 +414,7 @@ fn write_report_with_slice(
 /// Writes `run.toml`: the experiment, the input fingerprint and each
 /// input's hash, sigmap's version and the shard (serde, so any name is
 /// valid TOML).
-fn write_manifest(
+pub(super) fn write_manifest(
     out: &Path,
     experiment: &Experiment,
     inputs: &Inputs,
@@ -436,117 +436,13 @@ fn write_manifest(
 
 /// `run.toml`: what a results folder was made from.
 #[derive(serde::Deserialize, serde::Serialize)]
-struct Manifest {
-    experiment: String,
-    fingerprint: String,
-    version: String,
-    shard: String,
+pub(super) struct Manifest {
+    pub(super) experiment: String,
+    pub(super) fingerprint: String,
+    pub(super) version: String,
+    pub(super) shard: String,
     #[serde(default)]
-    inputs: std::collections::BTreeMap<String, String>,
-}
-
-/// Joins the folders of `sigmap run --shard i/n` of the experiment file at
-/// `path` into `out` [default: `results/<name>`], checking that every shard
-/// ran the same inputs with this version and that no run is missing; the
-/// merged files are byte-identical to a one-machine run. Returns the folder.
-pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Result<PathBuf> {
-    let experiment = Experiment::load(path)?;
-    let labels: Vec<String> = experiment
-        .cells()
-        .iter()
-        .map(|c| Experiment::cell_label(c))
-        .collect();
-    let cells: Vec<Experiment> = experiment
-        .cells()
-        .iter()
-        .map(|cell| Experiment::load_cell(path, cell))
-        .collect::<Result<_>>()?;
-    let expected = fingerprint(&cells)?;
-    let (mut rows, mut timings) = (Vec::new(), Vec::new());
-    for dir in shards {
-        let manifest_path = dir.join("run.toml");
-        let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
-        if manifest.experiment != experiment.name() || manifest.fingerprint != expected.fingerprint
-        {
-            return Err(Error::input(
-                &manifest_path,
-                format!(
-                    "this shard ran experiment '{}' with other inputs (fingerprint {} vs {}); merge only shards of {}",
-                    manifest.experiment,
-                    manifest.fingerprint,
-                    expected.fingerprint,
-                    path.display()
-                ),
-            ));
-        }
-        if manifest.version != env!("CARGO_PKG_VERSION") {
-            return Err(Error::input(
-                &manifest_path,
-                format!(
-                    "shard {} was written by sigmap {}, this is {}",
-                    manifest.shard,
-                    manifest.version,
-                    env!("CARGO_PKG_VERSION")
-                ),
-            ));
-        }
-        rows.extend(read_rows::<RunRow>(&dir.join("runs.csv"))?);
-        timings.extend(read_rows::<TimingRow>(&dir.join("timings.csv"))?);
-        let (journal_rows, journal_timings) = read_journal(&dir.join("runs.journal.csv"))?;
-        rows.extend(journal_rows);
-        timings.extend(journal_timings);
-    }
-    // Only this experiment's runs, each once (a run in two shards, or in a
-    // shard's runs.csv and its journal, counts once).
-    let wanted = Wanted {
-        cells: &labels,
-        seeds: experiment.seeds(),
-        methods: experiment.methods(),
-    };
-    wanted.keep(&mut rows);
-    wanted.keep(&mut timings);
-    let have: BTreeSet<(String, u64, String)> = rows
-        .iter()
-        .map(|r| (r.cell.clone(), r.seed, r.method.clone()))
-        .collect();
-    let missing: Vec<String> = labels
-        .iter()
-        .flat_map(|c| {
-            let methods = experiment.methods();
-            experiment
-                .seeds()
-                .iter()
-                .flat_map(move |s| methods.iter().map(move |m| (c, *s, m)))
-        })
-        .filter(|(c, s, m)| !have.contains(&((*c).clone(), *s, m.as_str().to_string())))
-        .map(|(c, s, m)| format!("cell '{c}' seed {s} {m}"))
-        .collect();
-    if !missing.is_empty() {
-        return Err(Error::Usage(format!(
-            "{} runs are missing from the shards (first: {}); finish them with `sigmap run ... --shard i/n`",
-            missing.len(),
-            missing[0]
-        )));
-    }
-    let out = results_dir(&experiment, out);
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    let (study, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
-    write_manifest(&out, &experiment, &expected, 1, 1)?;
-    // The first run's maps and slice live in the shard that ran it.
-    for dir in shards {
-        for entry in std::fs::read_dir(dir)
-            .map_err(|e| Error::io(dir, e))?
-            .flatten()
-        {
-            let name = entry.file_name().to_string_lossy().into_owned();
-            if name == "slice.svg" || (name.starts_with("map_") && name.ends_with(".bt")) {
-                std::fs::copy(entry.path(), out.join(&name))
-                    .map_err(|e| Error::io(entry.path(), e))?;
-            }
-        }
-    }
-    write_report_with_slice(&out, &experiment, &study, &expected, charts)?;
-    Ok(out)
+    pub(super) inputs: std::collections::BTreeMap<String, String>,
 }
 
 #[cfg(test)]

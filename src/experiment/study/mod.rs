@@ -7,6 +7,7 @@ pub mod batch;
 pub mod cluster;
 pub mod config;
 pub mod journal;
+pub mod merge;
 pub mod metrics;
 pub mod regress;
 pub mod run_method;

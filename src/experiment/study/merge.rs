@@ -1,0 +1,213 @@
+//! `sigmap merge`: the folders of `sigmap run --shard i/n` joined into one
+//! results folder, byte-identical to a one-machine run. Every shard must
+//! have run the same inputs with this version, hold only the runs of its own
+//! share (cell, seed, method as the experiment defines them), each once, and
+//! together every run.
+
+use crate::error::{Error, Result};
+use crate::experiment::run::runner::{read_rows, RunRow, TimingRow};
+use crate::experiment::study::batch::{
+    finalize, results_dir, shard_runs, write_manifest, write_report_with_slice, Manifest,
+};
+use crate::experiment::study::journal::{fingerprint, read_journal, Wanted};
+use crate::experiment::Experiment;
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+/// Joins the folders of `sigmap run --shard i/n` of the experiment file at
+/// `path` into `out` [default: `results/<name>`], checking that every shard
+/// ran the same inputs with this version and that no run is missing; the
+/// merged files are byte-identical to a one-machine run. Returns the folder.
+pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Result<PathBuf> {
+    let experiment = Experiment::load(path)?;
+    let labels: Vec<String> = experiment
+        .cells()
+        .iter()
+        .map(|c| Experiment::cell_label(c))
+        .collect();
+    let cells: Vec<Experiment> = experiment
+        .cells()
+        .iter()
+        .map(|cell| Experiment::load_cell(path, cell))
+        .collect::<Result<_>>()?;
+    let expected = fingerprint(&cells)?;
+    let (mut rows, mut timings) = (Vec::new(), Vec::new());
+    let mut seen_shards: Vec<(String, PathBuf)> = Vec::new();
+    for dir in shards {
+        let manifest_path = dir.join("run.toml");
+        let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
+        if manifest.experiment != experiment.name() || manifest.fingerprint != expected.fingerprint
+        {
+            return Err(Error::input(
+                &manifest_path,
+                format!(
+                    "this shard ran experiment '{}' with other inputs (fingerprint {} vs {}); merge only shards of {}",
+                    manifest.experiment,
+                    manifest.fingerprint,
+                    expected.fingerprint,
+                    path.display()
+                ),
+            ));
+        }
+        if manifest.version != env!("CARGO_PKG_VERSION") {
+            return Err(Error::input(
+                &manifest_path,
+                format!(
+                    "shard {} was written by sigmap {}, this is {}",
+                    manifest.shard,
+                    manifest.version,
+                    env!("CARGO_PKG_VERSION")
+                ),
+            ));
+        }
+        let share = shard_share(&manifest, &dir.join("run.toml"), &experiment, &labels)?;
+        if let Some(other) = seen_shards.iter().find(|(s, _)| *s == manifest.shard) {
+            return Err(Error::input(
+                dir.join("run.toml"),
+                format!(
+                    "shard {} is given twice (also {}); give each shard's folder once",
+                    manifest.shard,
+                    other.1.display()
+                ),
+            ));
+        }
+        seen_shards.push((manifest.shard.clone(), dir.clone()));
+        let shard_rows: Vec<RunRow> = read_rows(&dir.join("runs.csv"))?;
+        check_rows(&dir.join("runs.csv"), &shard_rows, &share, &experiment, 2)?;
+        let (journal_rows, journal_timings) = read_journal(&dir.join("runs.journal.csv"))?;
+        check_rows(
+            &dir.join("runs.journal.csv"),
+            &journal_rows,
+            &share,
+            &experiment,
+            0,
+        )?;
+        rows.extend(shard_rows);
+        rows.extend(journal_rows);
+        timings.extend(read_rows::<TimingRow>(&dir.join("timings.csv"))?);
+        timings.extend(journal_timings);
+    }
+    // Each run once: a journal record of a run that runs.csv also holds
+    // (a shard killed while it finalised) counts once.
+    let wanted = Wanted {
+        cells: &labels,
+        seeds: experiment.seeds(),
+        methods: experiment.methods(),
+    };
+    wanted.keep(&mut rows);
+    wanted.keep(&mut timings);
+    let have: BTreeSet<(String, u64, String)> = rows
+        .iter()
+        .map(|r| (r.cell.clone(), r.seed, r.method.clone()))
+        .collect();
+    let missing: Vec<String> = labels
+        .iter()
+        .flat_map(|c| {
+            let methods = experiment.methods();
+            experiment
+                .seeds()
+                .iter()
+                .flat_map(move |s| methods.iter().map(move |m| (c, *s, m)))
+        })
+        .filter(|(c, s, m)| !have.contains(&((*c).clone(), *s, m.as_str().to_string())))
+        .map(|(c, s, m)| format!("cell '{c}' seed {s} {m}"))
+        .collect();
+    if !missing.is_empty() {
+        return Err(Error::Usage(format!(
+            "{} runs are missing from the shards (first: {}); finish them with `sigmap run ... --shard i/n`",
+            missing.len(),
+            missing[0]
+        )));
+    }
+    let out = results_dir(&experiment, out);
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let (study, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
+    write_manifest(&out, &experiment, &expected, 1, 1)?;
+    // The first run's maps and slice live in the shard that ran it.
+    for dir in shards {
+        for entry in std::fs::read_dir(dir)
+            .map_err(|e| Error::io(dir, e))?
+            .flatten()
+        {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if name == "slice.svg" || (name.starts_with("map_") && name.ends_with(".bt")) {
+                std::fs::copy(entry.path(), out.join(&name))
+                    .map_err(|e| Error::io(entry.path(), e))?;
+            }
+        }
+    }
+    write_report_with_slice(&out, &experiment, &study, &expected, charts)?;
+    Ok(out)
+}
+
+/// The runs (cell label, seed) a shard's `run.toml` says it ran: its share
+/// `i/n` of the experiment's runs.
+fn shard_share(
+    manifest: &Manifest,
+    manifest_path: &Path,
+    experiment: &Experiment,
+    labels: &[String],
+) -> Result<BTreeSet<(String, u64)>> {
+    let parsed = manifest
+        .shard
+        .split_once('/')
+        .and_then(|(i, n)| Some((i.parse::<usize>().ok()?, n.parse::<usize>().ok()?)))
+        .filter(|&(i, n)| (1..=n).contains(&i));
+    let Some((shard, shards)) = parsed else {
+        return Err(Error::input(
+            manifest_path,
+            format!("shard = \"{}\" is not i/n with 1 <= i <= n", manifest.shard),
+        ));
+    };
+    Ok(shard_runs(labels.len(), experiment.seeds(), shard, shards)
+        .into_iter()
+        .map(|(cell, seed)| (labels[cell].clone(), seed))
+        .collect())
+}
+
+/// Refuses a row that is not a run of the shard's share and method of the
+/// experiment, or that the file holds twice, naming the file and the row
+/// (its line when `first_line` is the line of the first row, 0: its
+/// position).
+fn check_rows(
+    path: &Path,
+    rows: &[RunRow],
+    share: &BTreeSet<(String, u64)>,
+    experiment: &Experiment,
+    first_line: usize,
+) -> Result<()> {
+    let mut seen = BTreeSet::new();
+    for (index, row) in rows.iter().enumerate() {
+        let at = if first_line > 0 {
+            format!("line {}", first_line + index)
+        } else {
+            format!("row {}", index + 1)
+        };
+        let what = format!(
+            "cell '{}' seed {} method {}",
+            row.cell, row.seed, row.method
+        );
+        let problem = if !experiment
+            .methods()
+            .iter()
+            .any(|m| m.as_str() == row.method)
+        {
+            Some("names a method the experiment does not have")
+        } else if !share.contains(&(row.cell.clone(), row.seed)) {
+            Some("is not a run of this shard (a cell or seed the experiment does not define, or another shard's run)")
+        } else if !seen.insert((row.cell.as_str(), row.seed, row.method.as_str())) {
+            Some("repeats a run and method the file already holds")
+        } else {
+            None
+        };
+        if let Some(problem) = problem {
+            return Err(Error::input(
+                path,
+                format!(
+                    "{at} ({what}) {problem}; merge only the folders `sigmap run --shard` wrote"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
