@@ -38,7 +38,15 @@ pub enum Error {
     /// A check ran and failed (a regression, an inconsistent covariance).
     #[error("{0}")]
     CheckFailed(String),
+    /// sigmap itself failed (a poisoned lock, a value it cannot serialise):
+    /// a bug, not the input's fault.
+    #[error("internal error (a bug in sigmap; please report it): {0}")]
+    Internal(String),
 }
+
+/// The exit code of an internal failure (an [`Error::Internal`] or a
+/// panic).
+pub const EXIT_INTERNAL: i32 = 3;
 
 impl Error {
     /// A bad-input error about `path`.
@@ -58,11 +66,13 @@ impl Error {
     }
 
     /// The process exit code: 1 for a failed check, 2 for anything the user
-    /// must fix (input, usage, files).
+    /// must fix (input, usage, files), [`EXIT_INTERNAL`] for sigmap's own
+    /// failure.
     pub fn exit_code(&self) -> i32 {
         match self {
             Error::CheckFailed(_) => 1,
             Error::Input { .. } | Error::Usage(_) | Error::Io { .. } => 2,
+            Error::Internal(_) => EXIT_INTERNAL,
         }
     }
 

@@ -1,8 +1,8 @@
 //! Staged output: a result appears whole or not at all, and sigmap never
 //! deletes a file or folder it did not write.
 //!
-//! A file is written to a hidden sibling (`.NAME.partial-PID`), synced and
-//! renamed over its target. A folder is filled as a hidden sibling and
+//! A file is written to a hidden sibling (`.NAME.partial-PID@HOST`), synced
+//! and renamed over its target. A folder is filled as a hidden sibling and
 //! renamed into place; every folder sigmap writes carries a [`MARKER`] file,
 //! and an existing target folder is replaced only if it is empty or carries
 //! that marker (the old folder is moved aside first, so a kill between the
@@ -15,12 +15,82 @@ use std::path::{Path, PathBuf};
 /// The file that marks a folder as sigmap's output.
 pub const MARKER: &str = ".sigmap-output";
 
-/// `dir/.NAME.TAG-PID`: a hidden sibling of `path`.
+/// `dir/.NAME.TAG-PID@HOST`: a hidden sibling of `path`, named for this
+/// process and host (a results folder on a shared filesystem is seen by
+/// processes of several hosts).
 fn sibling(path: &Path, tag: &str) -> PathBuf {
     let name = path
         .file_name()
         .map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-    parent(path).join(format!(".{name}.{tag}-{}", std::process::id()))
+    parent(path).join(format!(".{name}.{tag}-{}", Owner::me()))
+}
+
+/// A process on a host: who wrote a lock or a staging leftover.
+#[derive(Clone, Debug, PartialEq)]
+struct Owner {
+    pid: u32,
+    /// `None`: written by an older sigmap that did not record it (taken as
+    /// this host).
+    host: Option<String>,
+}
+
+impl Owner {
+    fn me() -> Owner {
+        Owner {
+            pid: std::process::id(),
+            host: Some(this_host()),
+        }
+    }
+
+    /// `PID@HOST` or `PID`.
+    fn parse(text: &str) -> Option<Owner> {
+        let (pid, host) = match text.trim().split_once('@') {
+            Some((pid, host)) if !host.is_empty() => (pid, Some(host.to_string())),
+            Some(_) => return None,
+            None => (text.trim(), None),
+        };
+        Some(Owner {
+            pid: pid.parse().ok()?,
+            host,
+        })
+    }
+
+    /// Whether it is this host's (so whether it runs can be told here).
+    fn is_local(&self) -> bool {
+        self.host.as_deref().is_none_or(|h| h == this_host())
+    }
+
+    /// Known to have ended: a process of this host that no longer runs.
+    fn is_gone(&self) -> bool {
+        self.is_local() && self.pid != std::process::id() && !alive(self.pid)
+    }
+}
+
+impl std::fmt::Display for Owner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}@{}", self.pid, self.host.as_deref().unwrap_or("?"))
+    }
+}
+
+/// This machine's host name ('@' and '/' replaced, so that it fits a file
+/// name and parses back).
+fn this_host() -> String {
+    let host = gethostname::gethostname().to_string_lossy().into_owned();
+    let host: String = host
+        .chars()
+        .map(|c| {
+            if c == '@' || c == '/' || c.is_whitespace() {
+                '_'
+            } else {
+                c
+            }
+        })
+        .collect();
+    if host.is_empty() {
+        "localhost".into()
+    } else {
+        host
+    }
 }
 
 /// The folder holding `path` (`.` for a bare name).
@@ -40,9 +110,11 @@ fn alive(pid: u32) -> bool {
     }
 }
 
-/// Removes the staging leftovers of `path` (`.NAME.partial-PID`,
-/// `.NAME.old-PID`) whose process is gone: a run killed mid-write. An old
-/// folder whose replacement never arrived is moved back.
+/// Removes the staging leftovers of `path` (`.NAME.partial-PID@HOST`,
+/// `.NAME.old-PID@HOST`) whose process is gone: a run of this host killed
+/// mid-write. Another host's are left alone (whether that process runs
+/// cannot be told from here). An old folder whose replacement never arrived
+/// is moved back.
 pub fn clean_stale(path: &Path) {
     let Some(name) = path.file_name().map(|n| n.to_string_lossy().into_owned()) else {
         return;
@@ -53,13 +125,13 @@ pub fn clean_stale(path: &Path) {
     for entry in entries.flatten() {
         let file = entry.file_name().to_string_lossy().into_owned();
         for tag in ["partial", "old"] {
-            let Some(pid) = file
+            let Some(owner) = file
                 .strip_prefix(&format!(".{name}.{tag}-"))
-                .and_then(|p| p.parse::<u32>().ok())
+                .and_then(Owner::parse)
             else {
                 continue;
             };
-            if pid == std::process::id() || alive(pid) {
+            if !owner.is_gone() {
                 continue;
             }
             let stale = entry.path();
@@ -158,16 +230,18 @@ pub fn write_folder(out: &Path, fill: impl FnOnce(&Path) -> Result<()>) -> Resul
     Ok(())
 }
 
-/// One writer per results folder: `.sigmap-run.lock` holds the process id
-/// of the `sigmap run` writing there, and goes when it ends.
+/// One writer per results folder: `.sigmap-run.lock` holds `PID@HOST` of
+/// the `sigmap run` writing there, and goes when it ends.
 pub struct RunLock {
     path: PathBuf,
 }
 
 impl RunLock {
-    /// Takes the folder's lock, or says which process holds it. A lock left
-    /// by a process that is gone is taken over.
-    pub fn acquire(dir: &Path) -> Result<RunLock> {
+    /// Takes the folder's lock, or says who holds it. A lock left by a
+    /// process of this host that is gone is taken over; one of another host
+    /// (a shared filesystem) is refused unless `break_lock`, since whether
+    /// that process still runs cannot be told from here.
+    pub fn acquire(dir: &Path, break_lock: bool) -> Result<RunLock> {
         let path = dir.join(".sigmap-run.lock");
         for _ in 0..2 {
             match std::fs::OpenOptions::new()
@@ -176,20 +250,32 @@ impl RunLock {
                 .open(&path)
             {
                 Ok(mut file) => {
-                    let _ = writeln!(file, "{}", std::process::id());
+                    let _ = writeln!(file, "{}", Owner::me());
                     return Ok(RunLock { path });
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                    let holder = std::fs::read_to_string(&path)
-                        .ok()
-                        .and_then(|t| t.trim().parse::<u32>().ok());
-                    match holder {
-                        Some(pid) if alive(pid) => {
+                    let text = std::fs::read_to_string(&path).unwrap_or_default();
+                    match Owner::parse(&text) {
+                        Some(holder) if holder.is_local() && !holder.is_gone() => {
                             return Err(Error::input(
                                 dir,
                                 format!(
-                                    "another sigmap run (process {pid}) is writing into this \
-                                     folder; wait for it to end or choose another --out"
+                                    "another sigmap run (process {}) is writing into this \
+                                     folder; wait for it to end or choose another --out",
+                                    holder.pid
+                                ),
+                            ))
+                        }
+                        Some(holder) if !holder.is_local() && !break_lock => {
+                            return Err(Error::input(
+                                dir,
+                                format!(
+                                    "process {} on host {} holds this folder's lock \
+                                     (.sigmap-run.lock); from here sigmap cannot tell whether \
+                                     it still runs: wait for it, or if it has ended rerun \
+                                     with --break-lock",
+                                    holder.pid,
+                                    holder.host.as_deref().unwrap_or("?")
                                 ),
                             ))
                         }
@@ -287,10 +373,16 @@ mod tests {
     fn leftovers_of_dead_processes_are_cleaned_and_a_live_lock_refuses() {
         let root = scratch("stale");
         let out = root.join("scans");
-        // A process id that cannot be running (above Linux's pid_max).
+        // A process id that cannot be running (above Linux's pid_max), here
+        // (old names without a host, and with this host's) and on another
+        // host, whose leftovers are left alone: from here its process may
+        // well be running.
         let dead = 4_999_999;
+        let host = this_host();
         std::fs::create_dir_all(root.join(format!(".scans.partial-{dead}"))).unwrap();
-        std::fs::write(root.join(format!(".map.bt.partial-{dead}")), "half").unwrap();
+        std::fs::write(root.join(format!(".map.bt.partial-{dead}@{host}")), "half").unwrap();
+        let elsewhere = format!(".map.bt.partial-{dead}@node-17.cluster");
+        std::fs::write(root.join(&elsewhere), "half").unwrap();
         write_folder(&out, |d| put(d, "a.csv", "1")).unwrap();
         write_file(&root.join("map.bt"), b"whole").unwrap();
         let mut names: Vec<String> = std::fs::read_dir(&root)
@@ -298,17 +390,33 @@ mod tests {
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
         names.sort();
-        assert_eq!(names, ["map.bt", "scans"]);
+        assert_eq!(names, [elsewhere.as_str(), "map.bt", "scans"]);
         // The lock: ours holds, a second is refused, a dead holder's is taken over.
-        let lock = RunLock::acquire(&root).unwrap();
-        std::fs::write(root.join(".sigmap-run.lock"), "1\n").unwrap(); // pid 1 is alive
-        let err = RunLock::acquire(&root).err().unwrap();
+        let lock_file = root.join(".sigmap-run.lock");
+        let lock = RunLock::acquire(&root, false).unwrap();
+        let text = std::fs::read_to_string(&lock_file).unwrap();
+        assert_eq!(text, format!("{}@{host}\n", std::process::id()));
+        std::fs::write(&lock_file, format!("1@{host}\n")).unwrap(); // pid 1 is alive
+        let err = RunLock::acquire(&root, true).err().unwrap();
         assert!(err.to_string().contains("process 1"), "{err}");
         drop(lock);
-        std::fs::write(root.join(".sigmap-run.lock"), format!("{dead}\n")).unwrap();
-        let lock = RunLock::acquire(&root).unwrap();
+        for dead_here in [format!("{dead}\n"), format!("{dead}@{host}\n")] {
+            std::fs::write(&lock_file, dead_here).unwrap();
+            drop(RunLock::acquire(&root, false).unwrap());
+            assert!(!lock_file.exists());
+        }
+        // Another host's lock: refused, naming it, until --break-lock.
+        std::fs::write(&lock_file, format!("{dead}@node-17.cluster\n")).unwrap();
+        let err = RunLock::acquire(&root, false).err().unwrap().to_string();
+        assert!(
+            err.contains("node-17.cluster") && err.contains("--break-lock"),
+            "{err}"
+        );
+        assert!(lock_file.exists());
+        let lock = RunLock::acquire(&root, true).unwrap();
+        let text = std::fs::read_to_string(&lock_file).unwrap();
+        assert!(text.ends_with(&format!("@{host}\n")), "{text}");
         drop(lock);
-        assert!(!root.join(".sigmap-run.lock").exists());
         std::fs::remove_dir_all(&root).unwrap();
     }
 

@@ -204,6 +204,78 @@ fn the_quickstart_pairs_every_method_with_the_ray_update() {
     assert!(html.contains("<table class=\"paired\">") && html.contains("against ray_update"));
 }
 
+/// `also_paired`: every method is also paired against the listed ones, with
+/// the same per-seed differences runs.csv gives; the terminal and report
+/// keep to the reference.
+#[test]
+fn also_paired_adds_the_pairs_against_a_second_method() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("q.toml");
+    let text = portable_quickstart().replace(
+        "seeds = [1, 2, 3]",
+        "seeds = [1, 2, 3]\nalso_paired = [\"unscented\"]",
+    );
+    std::fs::write(&file, text).unwrap();
+    let out = dir.path().join("out");
+    sigmap_ok(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    let text = std::fs::read_to_string(out.join("paired.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    let pairs: std::collections::BTreeSet<(&str, &str)> =
+        rows.iter().map(|r| (r[1], r[2])).collect();
+    let expected: std::collections::BTreeSet<(&str, &str)> = [
+        ("blind", "ray_update"),
+        ("unscented", "ray_update"),
+        ("blind", "unscented"),
+        ("ray_update", "unscented"),
+    ]
+    .into();
+    assert_eq!(pairs, expected);
+    // blind − unscented on F1 is the negated unscented − blind of runs.csv.
+    let runs = run_rows(&file, &out);
+    let f1 = |m: &str, seed: u64| {
+        runs.iter()
+            .find(|r| r.method == m && r.seed == seed)
+            .unwrap()
+            .get("f1")
+    };
+    let mean = (1..=3)
+        .map(|s| f1("blind", s) - f1("unscented", s))
+        .sum::<f64>()
+        / 3.0;
+    let row = rows
+        .iter()
+        .find(|r| (r[1], r[2], r[4]) == ("blind", "unscented", "f1"))
+        .unwrap();
+    let written: f64 = row[6].parse().unwrap();
+    assert!((written - mean).abs() < 1e-12, "{written} vs {mean}");
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        portable_quickstart().replace(
+            "seeds = [1, 2, 3]",
+            "seeds = [1]\nalso_paired = [\"jacobian\"]",
+        ),
+    )
+    .unwrap();
+    let refused = sigmap(&["run", bad.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert_eq!(refused.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        stderr.contains("bad.toml") && stderr.contains("also_paired lists jacobian"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn bad_method_lists_exit_2() {
     let dir = tempfile::tempdir().unwrap();

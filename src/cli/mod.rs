@@ -243,6 +243,10 @@ pub(crate) struct RunArgs {
     /// (cell, seed); join the shards' folders with `sigmap merge`.
     #[arg(long, value_parser = parse_shard)]
     shard: Option<(usize, usize)>,
+    /// Take over the folder's lock held by a process of another host (a
+    /// shared filesystem), once you know that process has ended.
+    #[arg(long)]
+    break_lock: bool,
     #[command(flatten)]
     run: BatchOptions,
 }
@@ -520,7 +524,32 @@ pub fn main() -> i32 {
             return if e.use_stderr() { 2 } else { 0 };
         }
     };
-    let result = match cli.command {
+    exit_code_of(move || dispatch(cli.command))
+}
+
+/// Runs a command and gives the process's exit code: 0, or its error's
+/// (printed as one line). A panic is a bug: its message (printed by the
+/// hook) and the internal failure's code, never one that reads as bad input
+/// or a failed check.
+fn exit_code_of(command: impl FnOnce() -> Result<()> + std::panic::UnwindSafe) -> i32 {
+    let Ok(result) = std::panic::catch_unwind(command) else {
+        eprintln!(
+            "error: internal error (a bug in sigmap; please report it with the command line)"
+        );
+        return crate::error::EXIT_INTERNAL;
+    };
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e}");
+            e.exit_code()
+        }
+    }
+}
+
+/// Runs one command.
+fn dispatch(command: Command) -> Result<()> {
+    match command {
         Command::Run(args) => run::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Export(args) => export::run(args),
@@ -533,12 +562,24 @@ pub fn main() -> i32 {
         Command::Merge(args) => run::merge(args),
         Command::Submit(args) => cluster::submit(args),
         Command::Status(args) => cluster::status(args),
-    };
-    match result {
-        Ok(()) => 0,
-        Err(e) => {
-            eprintln!("error: {e}");
-            e.exit_code()
-        }
+    }
+}
+
+#[cfg(test)]
+mod exit_code_tests {
+    use super::*;
+    use crate::error::EXIT_INTERNAL;
+
+    #[test]
+    fn each_kind_of_failure_has_its_own_exit_code() {
+        assert_eq!(exit_code_of(|| Ok(())), 0);
+        assert_eq!(
+            exit_code_of(|| Err(Error::CheckFailed("F1 fell".into()))),
+            1
+        );
+        assert_eq!(exit_code_of(|| Err(Error::input("a.toml", "bad"))), 2);
+        assert_eq!(exit_code_of(|| Err(Error::Usage("--x".into()))), 2);
+        assert_eq!(exit_code_of(|| Err(Error::Internal("poisoned".into()))), 3);
+        assert_eq!(exit_code_of(|| panic!("a bug")), EXIT_INTERNAL);
     }
 }

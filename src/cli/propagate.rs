@@ -55,7 +55,7 @@ pub(crate) fn run(args: PropagateArgs) -> Result<()> {
     );
     if args.json {
         let text = serde_json::to_string_pretty(&comparison)
-            .map_err(|e| Error::CheckFailed(e.to_string()))?;
+            .map_err(|e| Error::Internal(e.to_string()))?;
         println!("{text}");
         return Ok(());
     }

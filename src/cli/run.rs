@@ -16,6 +16,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         out: args.out.clone(),
         fresh: args.fresh,
         shard: args.shard,
+        break_lock: args.break_lock,
     };
     // A run is one method on one seed's scans: the bar counts them.
     let bar = progress_bar(0, "runs", args.run.quiet);
@@ -149,6 +150,7 @@ fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
         for (metric, title, digits) in HEADLINE {
             let Some(p) = paired.iter().find(|p| {
                 p.is_between_methods()
+                    && p.reference == experiment.reference().as_str()
                     && p.cell == first
                     && p.method == method.as_str()
                     && p.metric == metric

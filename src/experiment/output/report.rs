@@ -246,10 +246,11 @@ fn paired_table(html: &mut String, experiment: &Experiment, cell: &str, paired: 
             .iter()
             .filter(|&m| m != experiment.reference())
             .map(|m| {
-                let of_method = paired
-                    .iter()
-                    .filter(mine)
-                    .filter(|p| p.is_between_methods() && p.method == m.as_str());
+                let of_method = paired.iter().filter(mine).filter(|p| {
+                    p.is_between_methods()
+                        && p.reference == experiment.reference().as_str()
+                        && p.method == m.as_str()
+                });
                 (m.as_str().to_string(), of_method.collect())
             })
             .collect();

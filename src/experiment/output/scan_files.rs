@@ -137,7 +137,7 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
     let manifest = format!(
         "# sigmap {} scan set; see docs/files.md, \"Scan files\".\n{}",
         env!("CARGO_PKG_VERSION"),
-        toml::to_string(&manifest).map_err(|e| Error::CheckFailed(format!("scan.toml: {e}")))?
+        toml::to_string(&manifest).map_err(|e| Error::Internal(format!("scan.toml: {e}")))?
     );
     put(&dir.join("scan.toml"), &manifest)?;
 

@@ -35,6 +35,8 @@ pub struct RunOptions {
     pub fresh: bool,
     /// Run only shard `i` of `n` (1-based); `None`: all runs.
     pub shard: Option<(usize, usize)>,
+    /// Take over a lock another host holds (`--break-lock`).
+    pub break_lock: bool,
 }
 
 /// What a finished batch run produced.
@@ -74,7 +76,7 @@ pub fn run_experiment(
     let (experiment, cells, labels) = load_cells(path)?;
     let out = results_dir(&experiment, options.out.as_deref());
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    let _lock = crate::files::RunLock::acquire(&out)?;
+    let _lock = crate::files::RunLock::acquire(&out, options.break_lock)?;
     let inputs = fingerprint(&cells)?;
     let (shard, shards) = options.shard.unwrap_or((1, 1));
     if options.fresh {
@@ -298,7 +300,7 @@ impl Journal {
         let mut file = self
             .file
             .lock()
-            .map_err(|_| Error::CheckFailed("journal lock poisoned".into()))?;
+            .map_err(|_| Error::Internal("journal lock poisoned".into()))?;
         file.write_all(&text)
             .and_then(|()| file.sync_data())
             .map_err(|e| Error::io(&self.path, e))
@@ -368,7 +370,10 @@ pub(super) fn finalize(
     write_rows(&out.join("timings.csv"), &timings)?;
     let summary = summarise(&rows, labels, methods);
     write_rows(&out.join("summary.csv"), &summary)?;
-    let mut paired = paired(&rows, labels, methods, experiment.reference());
+    let mut paired: Vec<PairedRow> = experiment
+        .paired_references()
+        .flat_map(|reference| paired(&rows, labels, methods, reference))
+        .collect();
     paired.extend(paired_across_axes(
         &rows,
         experiment.sweep(),
@@ -428,8 +433,7 @@ pub(super) fn write_manifest(
         shard: format!("{shard}/{shards}"),
         inputs: inputs.files.iter().cloned().collect(),
     };
-    let body =
-        toml::to_string(&manifest).map_err(|e| Error::CheckFailed(format!("run.toml: {e}")))?;
+    let body = toml::to_string(&manifest).map_err(|e| Error::Internal(format!("run.toml: {e}")))?;
     let text = format!("# written by sigmap run; `sigmap run` and `sigmap merge` check it\n{body}");
     crate::files::write_file(&out.join("run.toml"), text.as_bytes())
 }

@@ -131,6 +131,9 @@ pub struct Experiment {
     /// (`reference = ".."`; default `ray_update` when listed, else the
     /// first method).
     reference: RunMethod,
+    /// Further methods every other one is also paired against
+    /// (`also_paired = [..]`), after the reference.
+    also_paired: Vec<RunMethod>,
     /// The workcell scene.
     scene: Scene,
     /// The robot.

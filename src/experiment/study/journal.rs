@@ -180,7 +180,7 @@ const TIMINGS: &[u8] = b"#timings\n";
 fn csv_lines<T: serde::Serialize>(rows: &[T]) -> Result<Vec<u8>> {
     let mut text = Vec::new();
     let bad =
-        |e: &dyn std::fmt::Display| Error::CheckFailed(format!("cannot write a journal row: {e}"));
+        |e: &dyn std::fmt::Display| Error::Internal(format!("cannot write a journal row: {e}"));
     {
         let mut w = csv::WriterBuilder::new()
             .has_headers(false)

@@ -70,6 +70,12 @@ impl Experiment {
         &self.reference
     }
 
+    /// Every method the others are paired against: the reference, then
+    /// those of `also_paired = [..]`.
+    pub fn paired_references(&self) -> impl Iterator<Item = &RunMethod> {
+        std::iter::once(&self.reference).chain(&self.also_paired)
+    }
+
     /// The workcell scene.
     pub fn scene(&self) -> &Scene {
         &self.scene

@@ -36,6 +36,9 @@ pub(super) struct ExperimentFile {
     pub(super) methods: Option<Vec<String>>,
     /// The method the others are paired against (`paired.csv`).
     pub(super) reference: Option<String>,
+    /// Further methods the others are also paired against.
+    #[serde(default)]
+    pub(super) also_paired: Vec<String>,
     pub(super) robot: MountSpec,
     #[serde(default)]
     pub(super) world_from_scene: PoseSpec,

@@ -91,6 +91,41 @@ fn referred(path: &Path, key: &str, value: &Path) -> Result<PathBuf> {
     ))
 }
 
+/// The further references of `also_paired = [..]`: each one of `methods`,
+/// not the reference, none twice. With the methods overridden (`sigmap map
+/// --method`) those no longer among them are dropped.
+fn also_paired(
+    names: &[String],
+    reference: &RunMethod,
+    methods: &[RunMethod],
+    overrides: &Overrides,
+) -> std::result::Result<Vec<RunMethod>, String> {
+    if let Some(name) = first_repeat(names) {
+        return Err(format!("also_paired lists {name} more than once"));
+    }
+    let mut out = Vec::new();
+    for name in names {
+        if name == reference.as_str() {
+            return Err(format!(
+                "also_paired lists {name}, which is already the reference"
+            ));
+        }
+        match methods.iter().find(|m| m.as_str() == name) {
+            Some(method) => out.push(method.clone()),
+            None if overrides.methods.is_some() => {}
+            None => {
+                let listed: Vec<&str> = methods.iter().map(RunMethod::as_str).collect();
+                return Err(format!(
+                    "also_paired lists {name}, which is not one of `methods` or the [[mapper]] \
+                     tables ({})",
+                    listed.join(", ")
+                ));
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// Every sweep axis has values, none twice, no field is swept twice, and a
 /// reference value is one of its axis's values.
 fn check_sweep_axes(sweeps: &[SweepAxis]) -> std::result::Result<(), String> {
@@ -339,6 +374,8 @@ impl Experiment {
             overrides.methods.is_none() || methods.iter().any(|m| m.as_str() == *name)
         });
         let reference = reference_method(named, &methods).map_err(&bad)?;
+        let also_paired =
+            also_paired(&file.also_paired, &reference, &methods, overrides).map_err(&bad)?;
         let mut experiment = Self {
             name: file.name.unwrap_or_else(|| crate::files::stem(path)),
             description: file.description,
@@ -351,6 +388,7 @@ impl Experiment {
             seeds,
             methods,
             reference,
+            also_paired,
             scene,
             robot,
             arm: mount.arm,
