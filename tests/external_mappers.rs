@@ -165,6 +165,27 @@ fn a_mapper_joins_the_sweep_like_sigmaps_own_methods() {
     has_paired(&out.join("paired.csv"), "recorded", "ray_update", "f1");
     has_row(&out.join("report.html"), "recorded");
     assert!(out.join("map_recorded.bt").is_file());
+    // The command it runs is printed before the first run and recorded in
+    // run.toml.
+    let command = format!(
+        "{} map --scans {{scans}} --profile",
+        env!("CARGO_BIN_EXE_sigmap")
+    );
+    let manifest: toml::Table = std::fs::read_to_string(out.join("run.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let recorded = manifest["mappers"]["recorded"].as_str().unwrap();
+    assert!(recorded.starts_with(&command), "{recorded}");
+    let loud = sigmap(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        dir.path().join("loud").to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&loud.stderr);
+    let announced = format!("mapper recorded will run for each cell and seed: {recorded}");
+    assert!(stderr.starts_with(&announced), "{stderr}");
     // A resume reuses the finished runs; a changed mapper is new input.
     let again = run_into(&file, &out, &[]);
     assert!(again.status.success());

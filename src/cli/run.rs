@@ -20,8 +20,11 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     };
     // A run is one method on one seed's scans: the bar counts them.
     let bar = progress_bar(0, "runs", args.run.quiet);
-    let start = |pending: usize, all: usize| {
+    let start = |experiment: &Experiment, pending: usize, all: usize| {
         bar.set_length(pending as u64);
+        if pending > 0 && !args.run.quiet {
+            announce_mappers(&bar, experiment);
+        }
         if pending < all && !args.run.quiet {
             bar.suspend(|| {
                 eprintln!(
@@ -127,6 +130,22 @@ fn number(v: f64, digits: usize) -> String {
         format!("{v:.digits$}")
     } else {
         "–".into()
+    }
+}
+
+/// Before the first run, the external programs the runs will start (also
+/// recorded in run.toml).
+fn announce_mappers(bar: &ProgressBar, experiment: &Experiment) {
+    for method in experiment.methods() {
+        if let crate::experiment::RunMethod::External(mapper) = method {
+            bar.suspend(|| {
+                eprintln!(
+                    "mapper {} will run for each cell and seed: {}",
+                    mapper.name,
+                    mapper.command_line()
+                );
+            });
+        }
     }
 }
 

@@ -209,6 +209,28 @@ pub struct MapperRun<'a> {
 }
 
 impl ExternalMapper {
+    /// The command as a shell would show it (arguments with spaces or
+    /// quotes single-quoted; placeholders unfilled). It runs without a
+    /// shell.
+    pub fn command_line(&self) -> String {
+        let quoted = |arg: &String| {
+            if arg.is_empty()
+                || arg
+                    .chars()
+                    .any(|c| c.is_whitespace() || "'\"\\$`".contains(c))
+            {
+                format!("'{}'", arg.replace('\'', "'\\''"))
+            } else {
+                arg.clone()
+            }
+        };
+        self.command
+            .iter()
+            .map(quoted)
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+
     /// The program the command runs: a path (relative to the experiment's
     /// folder) or a name looked up on `PATH`.
     pub fn program(&self) -> Result<PathBuf> {

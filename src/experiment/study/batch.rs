@@ -64,13 +64,13 @@ pub fn results_dir(experiment: &Experiment, out: Option<&Path>) -> PathBuf {
 /// Runs every (cell, seed) of the experiment file at `path` that the folder
 /// does not hold yet (or every one of shard `i/n`), in parallel on the
 /// current rayon pool, and writes the folder's files. A run is one method
-/// on one seed's scans: `pending_runs(to_do, all)` is called once with the
-/// runs to do and this shard's runs in all, `finished(runs)` as each seed's
-/// runs are done.
+/// on one seed's scans: `pending_runs(experiment, to_do, all)` is called
+/// once, before the first run, with the runs to do and this shard's runs in
+/// all, `finished(runs)` as each seed's runs are done.
 pub fn run_experiment(
     path: &Path,
     options: &RunOptions,
-    pending_runs: impl FnOnce(usize, usize),
+    pending_runs: impl FnOnce(&Experiment, usize, usize),
     finished: impl Fn(usize) + Sync,
 ) -> Result<RunOutcome> {
     let (experiment, cells, labels) = load_cells(path)?;
@@ -102,7 +102,7 @@ pub fn run_experiment(
         .collect();
     write_manifest(&out, &experiment, &inputs, shard, shards)?;
     let methods = experiment.methods().len();
-    pending_runs(pending.len() * methods, all * methods);
+    pending_runs(&experiment, pending.len() * methods, all * methods);
     let journal = Journal::open(&out.join(JOURNAL))?;
     let first = (0, experiment.seeds()[0]);
     let results: Vec<Result<(Vec<RunRow>, Vec<TimingRow>)>> = pending
@@ -432,6 +432,14 @@ pub(super) fn write_manifest(
         version: env!("CARGO_PKG_VERSION").into(),
         shard: format!("{shard}/{shards}"),
         inputs: inputs.files.iter().cloned().collect(),
+        mappers: experiment
+            .methods()
+            .iter()
+            .filter_map(|m| match m {
+                RunMethod::External(mapper) => Some((mapper.name.clone(), mapper.command_line())),
+                RunMethod::Own(_) => None,
+            })
+            .collect(),
     };
     let body = toml::to_string(&manifest).map_err(|e| Error::Internal(format!("run.toml: {e}")))?;
     let text = format!("# written by sigmap run; `sigmap run` and `sigmap merge` check it\n{body}");
@@ -447,6 +455,9 @@ pub(super) struct Manifest {
     pub(super) shard: String,
     #[serde(default)]
     pub(super) inputs: std::collections::BTreeMap<String, String>,
+    /// Each external mapper's command, as it runs (placeholders unfilled).
+    #[serde(default)]
+    pub(super) mappers: std::collections::BTreeMap<String, String>,
 }
 
 #[cfg(test)]
