@@ -144,30 +144,36 @@ mod tests {
 
     #[test]
     fn prepare_runs_on_several_threads_at_once() {
+        // Scan 0's preparation waits until scan 1's has begun: only a second
+        // thread can begin it. However slowly that thread starts, the test
+        // passes once it does; the long guard only turns a broken pipeline
+        // (one scan at a time) into a failure instead of a hang.
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
             .unwrap();
-        let running = AtomicUsize::new(0);
-        let most = AtomicUsize::new(0);
+        let (began, begun) = std::sync::mpsc::channel::<()>();
+        let begun = std::sync::Mutex::new(begun);
+        let overlapped = std::sync::atomic::AtomicBool::new(false);
         pool.install(|| {
             prepare_and_insert(
                 4,
                 4,
-                |_| {
-                    let n = running.fetch_add(1, Relaxed) + 1;
-                    most.fetch_max(n, Relaxed);
-                    // Hold the scan until another thread has taken one up
-                    // beside it (or, if none ever does, two seconds).
-                    let start = std::time::Instant::now();
-                    while most.load(Relaxed) < 2 && start.elapsed().as_secs() < 2 {
-                        std::thread::sleep(std::time::Duration::from_millis(1));
+                |i| match i {
+                    0 => {
+                        let guard = std::time::Duration::from_secs(300);
+                        let seen = begun.lock().unwrap().recv_timeout(guard).is_ok();
+                        overlapped.store(seen, Relaxed);
                     }
-                    running.fetch_sub(1, Relaxed);
+                    1 => began.send(()).unwrap(),
+                    _ => {}
                 },
                 |()| {},
             );
         });
-        assert_eq!(most.load(Relaxed), 2);
+        assert!(
+            overlapped.load(Relaxed),
+            "scan 1 was prepared only after scan 0"
+        );
     }
 }
