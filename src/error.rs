@@ -127,8 +127,14 @@ pub fn check_input_file(path: &Path, max_bytes: u64) -> Result<()> {
     Ok(())
 }
 
-/// Most bytes of a text input (TOML, URDF, CSV).
+/// Most bytes of a text input (URDF, CSV).
 pub const MAX_TEXT_BYTES: u64 = 64 << 20;
+
+/// Most bytes of a TOML file (an experiment, scene, profile or manifest).
+/// A parsed TOML document takes about 16 times its text, so this bounds the
+/// parse at about 64 MB; the largest experiment sigmap runs (10 000
+/// viewpoints) fits in about 1 MB.
+pub const MAX_TOML_BYTES: u64 = 4 << 20;
 
 /// Reads a whole text file (at most [`MAX_TEXT_BYTES`]), naming it on failure.
 pub fn read_text(path: &Path) -> Result<String> {
@@ -167,6 +173,18 @@ pub fn read_toml_with<T: serde::de::DeserializeOwned>(
     path: &Path,
     overrides: &[(String, toml::Value)],
 ) -> Result<T> {
+    check_input_file(path, MAX_TOML_BYTES).map_err(|e| match e {
+        Error::Input { path, .. } if path.is_file() => Error::input(
+            &path,
+            format!(
+                "is {} MB; a TOML input holds at most {} MB (10 000 viewpoints, the most a \
+                 run takes, fit in about 1 MB)",
+                std::fs::metadata(&path).map_or(0, |m| m.len() >> 20),
+                MAX_TOML_BYTES >> 20
+            ),
+        ),
+        other => other,
+    })?;
     let text = read_text(path)?;
     if overrides.is_empty() {
         // Straight from the text, so that errors carry their line.

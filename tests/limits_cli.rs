@@ -156,6 +156,31 @@ fn absurd_sizes_are_refused_before_any_work() {
     }
     std::fs::write(d.join("many.toml"), many).unwrap();
     run(&d.join("many.toml"), "viewpoints");
+    // A million viewpoints (58 MB of TOML) under a 1 GB address-space
+    // limit: refused on its size before it is parsed (parsing it took the
+    // allocator down).
+    let mut huge = std::fs::read_to_string(experiment(d, "huge", "seed = 1", "seed = 1")).unwrap();
+    huge.push_str(
+        &"\n[[viewpoint]]\njoints = [0.0, -1.2, 1.6, -1.97, -1.5708, 0.0]\n".repeat(1_000_000),
+    );
+    let huge_path = d.join("huge.toml");
+    std::fs::write(&huge_path, huge).unwrap();
+    let out = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 1000000; exec '{}' run '{}' --out '{}'",
+            env!("CARGO_BIN_EXE_sigmap"),
+            huge_path.display(),
+            d.join("out").display()
+        ))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("huge.toml") && stderr.contains("a TOML input holds at most 4 MB"),
+        "{stderr}"
+    );
     run(
         &experiment(d, "dup_seeds", "seeds = [1, 2, 3]", "seeds = [1, 2, 1]"),
         "lists 1 more than once",
