@@ -255,8 +255,36 @@ fn absurd_sizes_are_refused_before_any_work() {
             gt.to_str().unwrap(),
         ],
         "wide.toml",
-        "cells of 0.001 m",
+        "has 2.33e8 cells on its boundary alone",
     );
+    // A workspace of more than 2^31 cells (60 m x 60 m x 3 m at 1 cm) is
+    // run: its truth is computed where the beams reach, not over all of it.
+    let hall = (
+        "min = [-0.4, -0.4, -0.04]\nmax = [0.4, 0.4, 0.36]",
+        "min = [-30.0, -30.0, -0.04]\nmax = [30.0, 30.0, 3.0]",
+    );
+    let hall = tabletop(&d.join("wide_hall.toml"), bunny.to_str().unwrap(), &[hall]);
+    let e = experiment_with(d, "hall", "scenes/tabletop.toml", &hall);
+    let big = d.join("big");
+    let run = sigmap(&[
+        "run",
+        e.to_str().unwrap(),
+        "--out",
+        big.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let runs = std::fs::read_to_string(big.join("runs.csv")).unwrap();
+    let observable: Vec<u64> = runs
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
+        .collect();
+    assert!(observable.iter().all(|&n| n > 50_000), "{runs}");
     // Flags.
     let q = "experiments/quickstart.toml";
     refused(

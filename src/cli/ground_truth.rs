@@ -14,6 +14,7 @@ pub(crate) fn run(args: GroundTruthArgs) -> Result<()> {
     check_octree_path(&args.out)?;
     let scene = Scene::load(&args.scene)?;
     scene.check_resolution(args.resolution)?;
+    scene.check_truth_region(&scene.workspace, args.resolution, "the whole workspace")?;
     let start = Instant::now();
     let truth = voxelise(&scene, args.resolution);
     let seconds = start.elapsed().as_secs_f64();

@@ -4,6 +4,7 @@
 
 use super::{progress_bar, resolution_arg, with_threads, MapArgs};
 use crate::error::{Error, Result};
+use crate::eval::ground_truth::KeyBox;
 use crate::experiment::run::recorded::{map_recorded, read_scan_graph, RecordedOptions};
 use crate::experiment::run::runner::registered_truth;
 use crate::experiment::{self, write_rays, Experiment, Overrides};
@@ -83,7 +84,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
     let start = Instant::now();
     let origin = crate::geometry::Vector3::zeros();
     let tree = if args.method == Method::RegisteredTruth {
-        registered_truth(&experiment, &run.truth, resolution, &origin)
+        registered_truth(&experiment, &run.truth, resolution, &origin, &KeyBox::ALL)
     } else {
         with_threads(args.run.threads, || {
             build_map(&view, &run.scans, args.method, resolution, &origin)

@@ -41,10 +41,88 @@ pub fn voxelise_at(scene: &Scene, resolution: f64, offset: &Vector3) -> Octree {
 /// (`runner::registered_truth`). The same rule cell by cell, each cell's box
 /// taken into the scene frame.
 pub fn voxelise_in(scene: &Scene, resolution: f64, map_from_scene: &Isometry3) -> Octree {
+    voxelise_within(scene, resolution, map_from_scene, &KeyBox::ALL)
+}
+
+/// [`voxelise_in`] over the finest cells of `region` only: the same value
+/// on each of them, every other cell unknown. A run's truth is needed only
+/// over its observable cells, so its cost follows the observed volume and
+/// the surfaces in it, not the workspace (whose boundary alone holds
+/// (area / resolution²) cells).
+pub fn voxelise_within(
+    scene: &Scene,
+    resolution: f64,
+    map_from_scene: &Isometry3,
+    region: &KeyBox,
+) -> Octree {
     let mut tree = Octree::new(resolution);
-    let placement = Placement::new(map_from_scene);
-    recurse(scene, &mut tree, Key([0, 0, 0]), 0, &placement);
+    let voxeliser = Voxeliser {
+        scene,
+        placement: Placement::new(map_from_scene),
+        region: *region,
+    };
+    voxeliser.recurse(&mut tree, Key([0, 0, 0]), 0);
     tree
+}
+
+/// A box of finest cells, by key, bounds included.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct KeyBox {
+    min: [u16; 3],
+    max: [u16; 3],
+}
+
+impl KeyBox {
+    /// Every cell of the tree.
+    pub const ALL: KeyBox = KeyBox {
+        min: [0; 3],
+        max: [u16::MAX; 3],
+    };
+
+    /// The smallest box that holds `cells` (Morton codes; an empty box
+    /// without any).
+    pub fn spanning(cells: impl IntoIterator<Item = u64>) -> KeyBox {
+        let mut span = KeyBox {
+            min: [u16::MAX; 3],
+            max: [0; 3],
+        };
+        let mut any = false;
+        for code in cells {
+            let key = Key::from_morton(code);
+            for k in 0..3 {
+                span.min[k] = span.min[k].min(key.0[k]);
+                span.max[k] = span.max[k].max(key.0[k]);
+            }
+            any = true;
+        }
+        if any {
+            span
+        } else {
+            KeyBox {
+                min: [1; 3],
+                max: [0; 3],
+            }
+        }
+    }
+
+    /// The key range `[first, last]` on each axis of the cell at `depth`.
+    fn range(key: &Key, depth: u8) -> ([u16; 3], [u16; 3]) {
+        let span = (1u32 << (DEPTH - depth)) - 1;
+        let last = key.0.map(|k| (u32::from(k) + span) as u16);
+        (key.0, last)
+    }
+
+    /// Whether the cell at `depth` shares a finest cell with the box.
+    fn meets(&self, key: &Key, depth: u8) -> bool {
+        let (first, last) = Self::range(key, depth);
+        (0..3).all(|k| first[k] <= self.max[k] && self.min[k] <= last[k])
+    }
+
+    /// Whether every finest cell of the cell at `depth` is in the box.
+    pub fn holds(&self, key: &Key, depth: u8) -> bool {
+        let (first, last) = Self::range(key, depth);
+        (0..3).all(|k| self.min[k] <= first[k] && last[k] <= self.max[k])
+    }
 }
 
 /// Finest cells of a tree that are occupied and free (OctoMap's threshold).
@@ -103,40 +181,72 @@ struct SceneCell {
     bounds: Bounds,
 }
 
-fn recurse(scene: &Scene, tree: &mut Octree, key: Key, depth: u8, placement: &Placement) {
-    let cell = placement.cell(tree, &key, depth);
-    let ws = &scene.workspace;
-    if !cell.bounds.intersects(ws) {
-        return;
-    }
-    if depth == DEPTH {
-        if !ws.contains(&cell.centre) {
+/// What one voxelisation decides cells with: the scene, where the map's
+/// cells lie in it, and the cells wanted.
+struct Voxeliser<'a> {
+    scene: &'a Scene,
+    placement: Placement,
+    region: KeyBox,
+}
+
+impl Voxeliser<'_> {
+    fn recurse(&self, tree: &mut Octree, key: Key, depth: u8) {
+        let (scene, placement, region) = (self.scene, &self.placement, &self.region);
+        if !region.meets(&key, depth) {
             return;
         }
-        let scene_from_cell =
-            Isometry3::from_parts(cell.centre.coords.into(), placement.scene_from_map.rotation);
-        let half = Vector3::repeat(cell.half - TOUCH);
-        let occupied = scene
-            .objects_near(&cell.bounds.min, &cell.bounds.max)
-            .into_iter()
-            .any(|o| scene.box_meets_object(o, &scene_from_cell, &half));
-        let clamp = Clamp::OCTOMAP;
-        tree.update(&key, if occupied { clamp.max } else { clamp.min }, clamp);
-        return;
-    }
-    let (min, max) = (cell.bounds.min, cell.bounds.max);
-    let inside = ws.contains(&min) && ws.contains(&max);
-    if inside && scene.objects_near(&min, &max).is_empty() {
-        tree.update_region(&key, depth, Clamp::OCTOMAP.min, Clamp::OCTOMAP);
-        return;
-    }
-    let bit = 15 - depth as u32;
-    for child in 0..8u16 {
-        let mut k = key;
-        for (axis, kk) in k.0.iter_mut().enumerate() {
-            *kk |= ((child >> axis) & 1) << bit;
+        let cell = placement.cell(tree, &key, depth);
+        let ws = &scene.workspace;
+        if !cell.bounds.intersects(ws) {
+            return;
         }
-        recurse(scene, tree, k, depth + 1, placement);
+        if depth == DEPTH {
+            if !ws.contains(&cell.centre) {
+                return;
+            }
+            let scene_from_cell =
+                Isometry3::from_parts(cell.centre.coords.into(), placement.scene_from_map.rotation);
+            let half = Vector3::repeat(cell.half - TOUCH);
+            let occupied = scene
+                .objects_near(&cell.bounds.min, &cell.bounds.max)
+                .into_iter()
+                .any(|o| scene.box_meets_object(o, &scene_from_cell, &half));
+            let clamp = Clamp::OCTOMAP;
+            tree.update(&key, if occupied { clamp.max } else { clamp.min }, clamp);
+            return;
+        }
+        let (min, max) = (cell.bounds.min, cell.bounds.max);
+        if ws.contains(&min) && ws.contains(&max) && region.holds(&key, depth) {
+            // A block no solid comes near is free as a whole, one that lies
+            // inside a solid occupied as a whole: the tree grows with the
+            // surfaces, not with the volumes they enclose.
+            let near = scene.objects_near(&min, &max);
+            let scene_from_cell =
+                Isometry3::from_parts(cell.centre.coords.into(), placement.scene_from_map.rotation);
+            let half = Vector3::repeat(cell.half);
+            let value = if near.is_empty() {
+                Some(Clamp::OCTOMAP.min)
+            } else if near
+                .iter()
+                .any(|&o| scene.box_inside_object(o, &scene_from_cell, &half))
+            {
+                Some(Clamp::OCTOMAP.max)
+            } else {
+                None
+            };
+            if let Some(value) = value {
+                tree.update_region(&key, depth, value, Clamp::OCTOMAP);
+                return;
+            }
+        }
+        let bit = 15 - depth as u32;
+        for child in 0..8u16 {
+            let mut k = key;
+            for (axis, kk) in k.0.iter_mut().enumerate() {
+                *kk |= ((child >> axis) & 1) << bit;
+            }
+            self.recurse(tree, k, depth + 1);
+        }
     }
 }
 

@@ -16,7 +16,7 @@ mod key;
 mod limits;
 mod log_odds;
 pub use key::Key;
-pub use limits::{check_cells, check_span, MAX_WORKSPACE_CELLS, RESOLUTIONS};
+pub use limits::{check_span, RESOLUTIONS};
 pub use log_odds::{logodds, Clamp, LOG_ODDS_HIT, LOG_ODDS_MISS};
 
 /// Depth of the finest level.

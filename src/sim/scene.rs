@@ -268,19 +268,52 @@ impl ObjectSpec {
     }
 }
 
+/// Most cells on the boundary of a region the ground truth is computed
+/// over: the truth is split to single cells there, about 12 bytes each in
+/// the tree (1e8: about 1.2 GB).
+pub const MAX_TRUTH_BOUNDARY_CELLS: f64 = 1e8;
+
 /// The farthest a scaled mesh's vertex may lie from its object's origin
 /// (m): 10 km, past any workcell and within the octree's reach.
 const MAX_MESH_REACH: f64 = 1e4;
 
 impl Scene {
-    /// Checks that the workspace fits an octree at `resolution` (its span,
-    /// and at most `MAX_WORKSPACE_CELLS` cells), before anything is
-    /// allocated; the error names the scene file.
+    /// Checks that the workspace fits an octree at `resolution` (±32 768
+    /// cells around the origin on each axis), before anything is allocated;
+    /// the error names the scene file. Its volume is not bounded: the
+    /// ground truth, the observable mask and the scores grow with the
+    /// surfaces and the observed volume.
     pub fn check_resolution(&self, resolution: f64) -> Result<()> {
-        use crate::mapping::octree::{check_cells, check_span};
-        check_span(self.workspace.reach(), resolution)
-            .map_err(|e| Error::input(&self.source, e))?;
-        check_cells(self.workspace.extent(), resolution).map_err(|e| Error::input(&self.source, e))
+        crate::mapping::octree::check_span(self.workspace.reach(), resolution)
+            .map_err(|e| Error::input(&self.source, e))
+    }
+
+    /// Checks that the ground truth over `region` (scene frame; cut to the
+    /// workspace) stays within [`MAX_TRUTH_BOUNDARY_CELLS`] cells on its
+    /// boundary at `resolution`, before anything is allocated: the truth is
+    /// split to single cells there (its surfaces' cells come on top, and
+    /// they lie inside the region). `what` says what the region is.
+    pub fn check_truth_region(&self, region: &Bounds, resolution: f64, what: &str) -> Result<()> {
+        let ws = &self.workspace;
+        let n: Vec<f64> = (0..3)
+            .map(|k| {
+                ((region.max[k].min(ws.max[k]) - region.min[k].max(ws.min[k])) / resolution)
+                    .ceil()
+                    .max(0.0)
+            })
+            .collect();
+        let cells = 2.0 * (n[0] * n[1] + n[0] * n[2] + n[1] * n[2]);
+        if cells <= MAX_TRUTH_BOUNDARY_CELLS {
+            return Ok(());
+        }
+        Err(Error::input(
+            &self.source,
+            format!(
+                "the ground truth over {what} at {resolution} m has {cells:.2e} cells on its \
+                 boundary alone; sigmap handles at most {MAX_TRUTH_BOUNDARY_CELLS:.0e} (use a \
+                 coarser resolution, a smaller workspace or a shorter max_range)"
+            ),
+        ))
     }
 
     /// Reads a scene file. Mesh paths are relative to the scene file.
@@ -433,6 +466,34 @@ impl Scene {
             o.shape.as_ref(),
         )
         .map_or(true, |r| r.intersecting)
+    }
+
+    /// Whether the closed box of half-extents `half` in the frame
+    /// `scene_from_box` lies wholly inside object `object`'s solid: all
+    /// eight corners inside a convex solid (box, cylinder, sphere). Always
+    /// false for a mesh, which may be concave. Lets the ground truth call a
+    /// whole block occupied without visiting its cells.
+    pub fn box_inside_object(
+        &self,
+        object: usize,
+        scene_from_box: &Isometry3,
+        half: &Vector3,
+    ) -> bool {
+        let o = &self.objects[object];
+        if o.kind == "mesh" {
+            return false;
+        }
+        (0..8u8).all(|corner| {
+            let local = Vector3::from_fn(|k, _| {
+                if corner >> k & 1 == 1 {
+                    half[k]
+                } else {
+                    -half[k]
+                }
+            });
+            let p = scene_from_box * Point3::from(local);
+            o.shape.contains_point(&o.pose, to_parry(&p.coords))
+        })
     }
 }
 

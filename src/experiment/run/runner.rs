@@ -2,7 +2,7 @@
 //! scans (common random numbers), scored against the ground truth.
 
 use crate::error::{Error, Result};
-use crate::eval::ground_truth::{voxelise_at, voxelise_in};
+use crate::eval::ground_truth::{voxelise_at, voxelise_within, KeyBox};
 use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
 use crate::experiment::run::external::MapperRun;
@@ -55,14 +55,43 @@ pub fn ground_truth(experiment: &Experiment, seed: u64) -> Octree {
 /// arm with an exact hand-eye calibration would map: the reference method
 /// `registered_truth`, the ceiling for a map that cannot see the
 /// registration error (docs/math.md §7.5). The truth itself without it.
+/// Computed over the finest cells of `region` (every other one unknown).
 pub fn registered_truth(
     experiment: &Experiment,
     truth: &RunTruth,
     resolution: f64,
     offset: &Vector3,
+    region: &KeyBox,
 ) -> Octree {
     let map_from_scene = registered_placement(experiment, truth, offset);
-    voxelise_in(experiment.scene(), resolution, &map_from_scene)
+    voxelise_within(experiment.scene(), resolution, &map_from_scene, region)
+}
+
+/// The truth a run is scored against, computed over the box of finest
+/// cells that spans its observable mask (the same value on every scored
+/// cell as [`ground_truth`], in time and memory that follow the observed
+/// volume, not the workspace).
+pub fn run_truth(experiment: &Experiment, seed: u64, observable: &FxHashSet<u64>) -> Octree {
+    let offset = experiment.map_offset(seed);
+    voxelise_within(
+        experiment.scene(),
+        experiment.resolution(),
+        &Isometry3::translation(offset.x, offset.y, offset.z),
+        &KeyBox::spanning(observable.iter().copied()),
+    )
+}
+
+/// What one seed's runs give: a row and timings per method, each method's
+/// map, and the truth they were scored against.
+pub struct SeedOutcome {
+    /// One row per method.
+    pub rows: Vec<RunRow>,
+    /// One timing row per method.
+    pub timings: Vec<TimingRow>,
+    /// Each method's map.
+    pub maps: Vec<Octree>,
+    /// The truth ([`run_truth`]).
+    pub truth: Octree,
 }
 
 /// Where the run's registration places the scene in the map frame:
@@ -94,13 +123,10 @@ pub fn observable(
 
 /// Runs one seed: simulate, then build, score and check each method.
 /// Returns the rows, the timings and the maps (in `experiment.methods` order).
-pub fn run_seed(
-    experiment: &Experiment,
-    truth: &Octree,
-    seed: u64,
-) -> Result<(Vec<RunRow>, Vec<TimingRow>, Vec<Octree>)> {
+pub fn run_seed(experiment: &Experiment, seed: u64) -> Result<SeedOutcome> {
     let start = Instant::now();
     let seed_run = SeedRun::new(experiment, seed)?;
+    let truth = run_truth(experiment, seed, &seed_run.observable);
     let simulate_s = start.elapsed().as_secs_f64();
     let cell = Experiment::cell_label(experiment.cell());
     let (mut rows, mut timings, mut maps) = (Vec::new(), Vec::new(), Vec::new());
@@ -109,7 +135,7 @@ pub fn run_seed(
         let map = seed_run.map(method, &cell)?;
         let model_s = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let scores: MapScores = score_map(&map, truth, &seed_run.observable);
+        let scores: MapScores = score_map(&map, &truth, &seed_run.observable);
         let pairs = method.own().map_or_else(Vec::new, |m| seed_run.errors(m));
         // Points of one viewpoint share its pose error: the χ² bounds of
         // the consistency report do not apply to the run's points as one.
@@ -150,7 +176,12 @@ pub fn run_seed(
         });
         maps.push(map);
     }
-    Ok((rows, timings, maps))
+    Ok(SeedOutcome {
+        rows,
+        timings,
+        maps,
+        truth,
+    })
 }
 
 /// One seed's simulated run, with what every method of it shares: the
@@ -198,6 +229,7 @@ impl<'a> SeedRun<'a> {
                 &self.run.truth,
                 experiment.resolution(),
                 &self.offset,
+                &KeyBox::spanning(self.observable.iter().copied()),
             )),
             RunMethod::Own(method) => {
                 let extras = BuildExtras {
@@ -384,6 +416,56 @@ mod tests {
     }
 
     #[test]
+    fn a_runs_truth_is_the_workspace_truth_on_every_observable_cell() {
+        // The truth computed around the observable mask holds every
+        // observable cell the workspace truth holds, with its value, and
+        // nothing far outside the mask.
+        // The tabletop in a 6 m x 6 m x 2.5 m workspace: the rays (2 m)
+        // see only part of it.
+        let dir = tempfile::tempdir().unwrap();
+        registration_only(dir.path());
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let scene = std::fs::read_to_string(root.join("scenes/tabletop.toml"))
+            .unwrap()
+            .replace("meshes/", &format!("{}/scenes/meshes/", root.display()))
+            .replace("min = [-0.4, -0.4, -0.04]", "min = [-3.0, -3.0, -0.04]")
+            .replace("max = [0.4, 0.4, 0.36]", "max = [3.0, 3.0, 2.5]");
+        std::fs::write(dir.path().join("wide.toml"), scene).unwrap();
+        let file = dir.path().join("experiment.toml");
+        let text = std::fs::read_to_string(&file).unwrap().replace(
+            &format!("{}/scenes/tabletop.toml", root.display()),
+            &dir.path().join("wide.toml").display().to_string(),
+        );
+        std::fs::write(&file, text).unwrap();
+        let experiment = Experiment::load(&file).unwrap();
+        for seed in [1, 4] {
+            let run = simulate(&experiment, seed, |_| {}).unwrap();
+            let offset = experiment.map_offset(seed);
+            let seen = observable(&experiment, &run.truth.scans, &offset);
+            let (around, whole) = (
+                run_truth(&experiment, seed, &seen),
+                ground_truth(&experiment, seed),
+            );
+            let mut known = 0;
+            for &code in &seen {
+                let key = crate::mapping::Key::from_morton(code);
+                let value = |t: &Octree| t.value_at(&t.center(&key, DEPTH));
+                assert_eq!(value(&around), value(&whole), "{key:?}");
+                known += usize::from(value(&whole).is_some());
+            }
+            assert!(known > 10_000, "{known}");
+            assert!(
+                around.stats().leaves * 2 < whole.stats().leaves,
+                "{:?} {:?}",
+                around.stats(),
+                whole.stats()
+            );
+            let span = KeyBox::spanning(seen.iter().copied());
+            around.visit_leaves(|leaf| assert!(span.holds(&leaf.key, leaf.depth), "{leaf:?}"));
+        }
+    }
+
+    #[test]
     fn the_registered_truth_holds_the_surface_where_the_nominal_chain_puts_it() {
         // With only T_sw wrong, a true hit seen through the nominal chain lies
         // at T̂_sw⁻¹ T_sw x: on the registered truth's surface, off the truth's.
@@ -392,7 +474,7 @@ mod tests {
         let seed = 3;
         let run = simulate(&experiment, seed, |_| {}).unwrap();
         let offset = experiment.map_offset(seed);
-        let registered = registered_truth(&experiment, &run.truth, 0.01, &offset);
+        let registered = registered_truth(&experiment, &run.truth, 0.01, &offset, &KeyBox::ALL);
         let truth = ground_truth(&experiment, seed);
         let (mut hits, mut in_registered, mut in_truth) = (0, 0, 0);
         for (scan, seen) in run.scans.iter().zip(&run.truth.scans) {
@@ -440,7 +522,7 @@ mod tests {
         experiment.profile_mut().scale_pose_errors(0.0);
         let run = simulate(&experiment, 1, |_| {}).unwrap();
         let offset = experiment.map_offset(1);
-        let registered = registered_truth(&experiment, &run.truth, 0.01, &offset);
+        let registered = registered_truth(&experiment, &run.truth, 0.01, &offset, &KeyBox::ALL);
         assert_eq!(registered.leaves(), ground_truth(&experiment, 1).leaves());
     }
 

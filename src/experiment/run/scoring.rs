@@ -4,10 +4,10 @@
 //! real scans of a workcell whose CAD model is known.
 
 use crate::error::{Error, Result};
-use crate::eval::ground_truth::voxelise_in;
+use crate::eval::ground_truth::{voxelise_within, KeyBox};
 use crate::eval::observable::{observable_along, SeenRay};
 use crate::eval::scores::score_map;
-use crate::experiment::run::runner::{ground_truth, observable};
+use crate::experiment::run::runner::{observable, run_truth};
 use crate::experiment::study::metrics::{Measured, RunRow};
 use crate::experiment::{simulate, Experiment};
 use crate::geometry::{Isometry3, Point3};
@@ -65,10 +65,11 @@ pub fn score_external(
     name: &str,
 ) -> Result<RunRow> {
     check_map_resolution(map, experiment.resolution(), "the experiment's")?;
+    experiment.check_truth_cost()?;
     let run = simulate(experiment, seed, |_| {})?;
     let offset = experiment.map_offset(seed);
     let observable = observable(experiment, &run.truth.scans, &offset);
-    let truth = ground_truth(experiment, seed);
+    let truth = run_truth(experiment, seed, &observable);
     let cell = Experiment::cell_label(experiment.cell());
     let mut row = row_of(map, &truth, &observable, RowOf { cell, seed, name });
     row.resolution = experiment.resolution();
@@ -120,8 +121,9 @@ pub fn score_against_scene(
     name: &str,
 ) -> Result<RunRow> {
     scene.check_resolution(map.resolution())?;
-    let truth = voxelise_in(scene, map.resolution(), map_from_scene);
     let observable = observable_along(recorded_rays(nodes, max_range), map.resolution());
+    let region = KeyBox::spanning(observable.iter().copied());
+    let truth = voxelise_within(scene, map.resolution(), map_from_scene, &region);
     let whose = RowOf {
         cell: String::new(),
         seed: 0,

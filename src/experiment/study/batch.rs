@@ -6,9 +6,7 @@
 
 use crate::error::{Error, Result};
 use crate::experiment::output::folder_readme::write_folder_readme;
-use crate::experiment::run::runner::{
-    ground_truth, read_rows, run_seed, write_rows, RunRow, TimingRow,
-};
+use crate::experiment::run::runner::{read_rows, run_seed, write_rows, RunRow, TimingRow};
 use crate::experiment::study::journal::{
     fingerprint, journal_record, read_journal, Inputs, Wanted, FINGERPRINT_SCHEME,
 };
@@ -18,6 +16,7 @@ use crate::experiment::study::summary::{
 use crate::experiment::Experiment;
 use crate::experiment::RunMethod;
 use crate::experiment::{charts::results, output::report};
+use crate::geometry::Vector3;
 use crate::mapping::octomap_io::write_octree;
 use crate::mapping::Octree;
 use rayon::prelude::*;
@@ -74,6 +73,9 @@ pub fn run_experiment(
     finished: impl Fn(usize) + Sync,
 ) -> Result<RunOutcome> {
     let (experiment, cells, labels) = load_cells(path)?;
+    for cell in &cells {
+        cell.check_truth_cost()?;
+    }
     let out = results_dir(&experiment, options.out.as_deref());
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let _lock = crate::files::RunLock::acquire(&out, options.break_lock)?;
@@ -108,14 +110,13 @@ pub fn run_experiment(
     let results: Vec<Result<(Vec<RunRow>, Vec<TimingRow>)>> = pending
         .par_iter()
         .map(|&(c, seed)| {
-            let truth = ground_truth(&cells[c], seed);
-            let (new_rows, new_timings, maps) = run_seed(&cells[c], &truth, seed)?;
+            let outcome = run_seed(&cells[c], seed)?;
             if (c, seed) == first {
-                write_first_maps(&out, &cells[0], seed, &truth, &maps)?;
+                write_first_maps(&out, &cells[0], seed, &outcome.truth, &outcome.maps)?;
             }
-            journal.append(&new_rows, &new_timings)?;
-            finished(new_rows.len());
-            Ok((new_rows, new_timings))
+            journal.append(&outcome.rows, &outcome.timings)?;
+            finished(outcome.rows.len());
+            Ok((outcome.rows, outcome.timings))
         })
         .collect();
     for result in results {
@@ -259,10 +260,26 @@ fn write_first_maps(
     }
     let offset = cell.map_offset(seed);
     let workspace = &cell.scene().workspace;
-    let workspace = crate::sim::scene::Bounds {
+    let mut workspace = crate::sim::scene::Bounds {
         min: workspace.min + offset,
         max: workspace.max + offset,
     };
+    // The truth is known around the observed cells only: the slice spans
+    // that part of the workspace.
+    let mut known = crate::sim::scene::Bounds {
+        min: crate::geometry::Point3::from(Vector3::repeat(f64::INFINITY)),
+        max: crate::geometry::Point3::from(Vector3::repeat(f64::NEG_INFINITY)),
+    };
+    truth.visit_leaves(|leaf| {
+        let half = Vector3::repeat(truth.node_size(leaf.depth) / 2.0);
+        let centre = truth.center(&leaf.key, leaf.depth);
+        known.min = known.min.inf(&(centre - half));
+        known.max = known.max.sup(&(centre + half));
+    });
+    if known.intersects(&workspace) {
+        workspace.min = workspace.min.sup(&known.min);
+        workspace.max = workspace.max.inf(&known.max);
+    }
     let pairs: Vec<_> = cell.methods().iter().cloned().zip(maps.iter()).collect();
     results::plot_slice(
         &out.join("slice.svg"),

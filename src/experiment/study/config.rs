@@ -238,6 +238,31 @@ impl Experiment {
             .join(";")
     }
 
+    /// Checks, before anything is allocated, that a run's ground truth
+    /// stays within bounds: it spans what the beams can reach, the nominal
+    /// sensor positions with `max_range` around them, cut to the workspace.
+    pub fn check_truth_cost(&self) -> crate::error::Result<()> {
+        use crate::geometry::{Point3, Vector3};
+        let reach = self.scanner.max_range + self.resolution;
+        let mut seen = crate::sim::scene::Bounds {
+            min: Point3::from(Vector3::repeat(f64::INFINITY)),
+            max: Point3::from(Vector3::repeat(f64::NEG_INFINITY)),
+        };
+        for viewpoint in &self.viewpoints {
+            let sensor = self
+                .nominal_scene_from_camera(&viewpoint.joints)
+                .translation
+                .vector;
+            seen.min = seen.min.inf(&Point3::from(sensor - Vector3::repeat(reach)));
+            seen.max = seen.max.sup(&Point3::from(sensor + Vector3::repeat(reach)));
+        }
+        self.scene.check_truth_region(
+            &seen,
+            self.resolution,
+            "the workspace within max_range of the viewpoints",
+        )
+    }
+
     /// The nominal `scene_from_camera` at a joint configuration.
     pub fn nominal_scene_from_camera(&self, joints: &[f64]) -> Isometry3 {
         self.world_from_scene.to_isometry().inverse()
