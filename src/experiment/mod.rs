@@ -23,10 +23,10 @@
 //! let run = simulate(&experiment, 1, |_viewpoints_done| {})?;
 //! let view = experiment.mapper_view();
 //! let map = build_map(&view, &run.scans, Method::Unscented, 0.01, &experiment.map_offset(1))?;
-//! // Or everything `sigmap run` does for one seed: every method, scored.
-//! let truth = runner::ground_truth(&experiment, 1);
-//! let (rows, _timings, _maps) = runner::run_seed(&experiment, &truth, 1)?;
-//! println!("F1 {}", rows[0].get("f1"));
+//! // Or everything `sigmap run` does for one seed: every method, scored
+//! // against the truth over the cells the run observed.
+//! let outcome = runner::run_seed(&experiment, 1)?;
+//! println!("F1 {}", outcome.rows[0].get("f1"));
 //! # Ok::<(), sigmap::Error>(())
 //! ```
 
