@@ -25,6 +25,12 @@ fn sibling(path: &Path, tag: &str) -> PathBuf {
     parent(path).join(format!(".{name}.{tag}-{}", Owner::me()))
 }
 
+/// Whether process `pid` of this host is known to have ended (never our
+/// own).
+pub fn process_gone(pid: u32) -> bool {
+    pid != std::process::id() && !alive(pid)
+}
+
 /// A process on a host: who wrote a lock or a staging leftover.
 #[derive(Clone, Debug, PartialEq)]
 struct Owner {

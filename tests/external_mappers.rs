@@ -156,8 +156,21 @@ fn a_mapper_joins_the_sweep_like_sigmaps_own_methods() {
         "[\"ray_update\"]",
         &sigmap_mapper("recorded"),
     );
+    // Leftovers of a killed sigmap (a process that cannot run) are removed
+    // when mappers next run; a failed run's folder (marked) is kept.
+    let tmp = std::env::temp_dir();
+    let (left, failed) = (
+        tmp.join("sigmap-mapper-4999999-77"),
+        tmp.join("sigmap-mapper-4999999-78"),
+    );
+    std::fs::create_dir_all(left.join("work")).unwrap();
+    std::fs::create_dir_all(&failed).unwrap();
+    std::fs::write(failed.join("FAILED.txt"), "the command failed\n").unwrap();
     let out = dir.path().join("out");
     ok(run_into(&file, &out, &[]));
+    assert!(!left.exists(), "a killed run's leftover is removed");
+    assert!(failed.exists(), "a failed run's folder is kept");
+    std::fs::remove_dir_all(&failed).unwrap();
     // The same scans through the export (f32 points) and sigmap's recorded
     // ray update: the ray update's rows.
     rows_match_the_ray_update(&out, "recorded", 1e-3);
@@ -249,7 +262,11 @@ fn a_failing_mapper_is_one_line_and_the_finished_runs_stay() {
             "the command failed (exit status: 1)",
             "mapper blew up",
         ),
-        ("sleep 30", "after its timeout of 2 s", ""),
+        (
+            "sleep 30 & echo $! > ${CHILD}; wait",
+            "after its timeout of 2 s",
+            "",
+        ),
         ("true", "wrote no map", ""),
         (
             "echo not an octree > map.ot",
@@ -263,10 +280,13 @@ fn a_failing_mapper_is_one_line_and_the_finished_runs_stay() {
             "",
         ),
     ];
+    let children = tempfile::tempdir().unwrap();
+    let child_pid = children.path().join("child.pid");
     for (fails, says, stderr) in cases {
         let fails = fails
             .replace("${SIGMAP}", sigmap_bin)
-            .replace("${PROFILE}", profile.to_str().unwrap());
+            .replace("${PROFILE}", profile.to_str().unwrap())
+            .replace("${CHILD}", child_pid.to_str().unwrap());
         let script = format!("if [ {{seed}} = 1 ]; then exec {good}; fi; {fails}");
         let mapper = format!(
             "[[mapper]]\nname = \"flaky\"\ncommand = {}\nmap = \"{{dir}}/map.ot\"\ntimeout_s = 2\n",
@@ -289,6 +309,18 @@ fn a_failing_mapper_is_one_line_and_the_finished_runs_stay() {
             "seed 1 kept: {journal}"
         );
     }
+    // What the timed-out command started was stopped with it (its process
+    // group): the background `sleep 30` is gone, or a zombie waiting for
+    // init, not sleeping on.
+    let pid = std::fs::read_to_string(&child_pid).unwrap();
+    let stat = std::fs::read_to_string(format!("/proc/{}/stat", pid.trim())).unwrap_or_default();
+    let state = stat
+        .rsplit(')')
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .next();
+    assert!(matches!(state, None | Some("Z")), "{pid}: {stat}");
 }
 
 /// A map in another frame (here, every point 5 m away: a mapper that did

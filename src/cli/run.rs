@@ -99,14 +99,15 @@ fn print_headline(experiment: &Experiment, summary: &[SummaryRow], rows: usize) 
             format!(", cell {first}")
         }
     );
+    let w = method_width(experiment);
     println!(
-        "{:<11} {:>7} {:>7} {:>7} {:>11} {:>9} {:>7} {:>8} {:>9}",
+        "{:<w$} {:>7} {:>7} {:>7} {:>11} {:>9} {:>7} {:>8} {:>9}",
         "method", "prec", "recall", "F1", "false-free", "unknown", "Brier", "ROC AUC", "ANEES"
     );
     for method in experiment.methods() {
         let m = method.as_str();
         println!(
-            "{:<11} {:>7} {:>7} {:>7} {:>11} {:>9} {:>7} {:>8} {:>9}",
+            "{:<w$} {:>7} {:>7} {:>7} {:>11} {:>9} {:>7} {:>8} {:>9}",
             m,
             number(get(m, "precision"), 3),
             number(get(m, "recall"), 3),
@@ -149,6 +150,18 @@ fn announce_mappers(bar: &ProgressBar, experiment: &Experiment) {
     }
 }
 
+/// The method column as wide as the longest name (registered_truth, a
+/// mapper's), at least 11.
+fn method_width(experiment: &Experiment) -> usize {
+    experiment
+        .methods()
+        .iter()
+        .map(|m| m.as_str().len())
+        .max()
+        .unwrap_or(0)
+        .max(11)
+}
+
 /// The first cell's paired comparisons: per method but the reference, each
 /// metric's mean per-seed difference, its 95% interval and the verdict.
 fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
@@ -161,6 +174,7 @@ fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
         experiment.reference(),
         experiment.reference()
     );
+    let w = method_width(experiment);
     for method in experiment
         .methods()
         .iter()
@@ -177,7 +191,7 @@ fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
                 continue;
             };
             println!(
-                "{:<11} {:<11} {:>+9.digits$} [{:>+9.digits$}, {:>+9.digits$}]  {}",
+                "{:<w$} {:<11} {:>+9.digits$} [{:>+9.digits$}, {:>+9.digits$}]  {}",
                 if metric == HEADLINE[0].0 {
                     method.as_str()
                 } else {

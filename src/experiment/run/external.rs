@@ -281,6 +281,9 @@ impl ExternalMapper {
         let folder = PrivateFolder::new()
             .map_err(|e| self.failure(run, format!("no private folder: {e}")))?;
         let fail = |what: String| {
+            // Kept for the user to look at: marked, so that no later run
+            // takes it for the leftover of a killed sigmap.
+            let _ = std::fs::write(folder.path.join(FAILED), format!("{what}\n"));
             self.failure(
                 run,
                 format!("{what} (its files: {})", folder.path.display()),
@@ -369,8 +372,12 @@ impl ExternalMapper {
         stdout: &Path,
         stderr: &Path,
     ) -> std::result::Result<(), String> {
+        use std::os::unix::process::CommandExt;
         let file = |path: &Path| std::fs::File::create(path).map_err(|e| format!("{e}"));
+        // Its own process group, so that a timeout stops whatever it
+        // started too (a script's children).
         let mut child = Command::new(program)
+            .process_group(0)
             .args(args)
             .current_dir(dir)
             .stdin(Stdio::null())
@@ -383,6 +390,7 @@ impl ExternalMapper {
             match child.try_wait() {
                 Ok(Some(status)) => break status,
                 Ok(None) if start.elapsed() > self.timeout => {
+                    kill_group(&child);
                     let _ = child.kill();
                     let _ = child.wait();
                     return Err(format!(
@@ -401,6 +409,21 @@ impl ExternalMapper {
         }
     }
 }
+
+/// Sends SIGKILL to the process group `child` leads (it was started with
+/// `process_group(0)`, so the group's id is its process id).
+fn kill_group(child: &std::process::Child) {
+    if let Ok(group) = libc::pid_t::try_from(child.id()) {
+        // SAFETY: kill(2) with a negative pid signals that process group;
+        // it reads no memory of ours.
+        unsafe {
+            libc::kill(-group, libc::SIGKILL);
+        }
+    }
+}
+
+/// The file that marks a kept private folder of a failed mapper run.
+const FAILED: &str = "FAILED.txt";
 
 /// The last [`STDERR_TAIL`] bytes of a command's stderr, on one line.
 fn stderr_tail(path: &Path) -> String {
@@ -426,6 +449,8 @@ impl PrivateFolder {
     fn new() -> std::io::Result<Self> {
         use std::sync::atomic::{AtomicU64, Ordering};
         static NEXT: AtomicU64 = AtomicU64::new(0);
+        static CLEANED: std::sync::Once = std::sync::Once::new();
+        CLEANED.call_once(remove_leftovers);
         loop {
             let n = NEXT.fetch_add(1, Ordering::Relaxed);
             let path =
@@ -441,6 +466,29 @@ impl PrivateFolder {
     /// Removes the folder: sigmap made it, and only the run wrote in it.
     fn remove(self) {
         let _ = std::fs::remove_dir_all(&self.path);
+    }
+}
+
+/// Removes the private folders a killed sigmap left (`sigmap-mapper-PID-N`
+/// of a process that no longer runs, without a [`FAILED`] mark); those of
+/// failed runs, named in their error, are left to the user.
+fn remove_leftovers() {
+    let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = name
+            .strip_prefix("sigmap-mapper-")
+            .and_then(|rest| rest.split_once('-'))
+            .and_then(|(pid, _)| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        let path = entry.path();
+        if crate::files::process_gone(pid) && !path.join(FAILED).exists() && path.is_dir() {
+            let _ = std::fs::remove_dir_all(&path);
+        }
     }
 }
 
