@@ -6,10 +6,9 @@
 
 mod common;
 
-use common::{portable_quickstart, root, sigmap};
+use common::{kill_once_journaled, portable_experiment, portable_quickstart, root, sigmap};
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::Command;
 
 /// An experiment of the quickstart at 2 cm, `seeds`, `methods` and the
 /// mapper table `mapper`, written into `dir`.
@@ -353,16 +352,14 @@ fn a_map_in_another_frame_is_refused() {
 
 /// The shipped experiment with fewer cells and seeds, its paths absolute.
 fn small_octomap_compare(dir: &Path) -> std::path::PathBuf {
-    let r = root().display().to_string();
-    let text = std::fs::read_to_string(root().join("experiments/octomap_compare.toml"))
-        .unwrap()
-        .replace("\"../", &format!("\"{r}/"))
-        .replace("\"profiles/", &format!("\"{r}/experiments/profiles/"))
-        .replace("seeds = \"1..5\"", "seeds = [1, 2]")
-        .replace("values = [0.0, 1.0, 2.0, 4.0, 8.0]", "values = [0.0, 8.0]");
-    let path = dir.join("octomap_compare.toml");
-    std::fs::write(&path, text).unwrap();
-    path
+    portable_experiment(
+        "octomap_compare",
+        dir,
+        &[
+            ("seeds = \"1..5\"", "seeds = [1, 2]"),
+            ("values = [0.0, 1.0, 2.0, 4.0, 8.0]", "values = [0.0, 8.0]"),
+        ],
+    )
 }
 
 /// OctoMap's graph2tree in a sweep: its rows equal the ray update's within
@@ -384,8 +381,8 @@ fn graph2tree_joins_the_sweep_and_a_killed_run_resumes_identically() {
         .contains("octomap"));
     // Killed once the first run is journaled, then resumed.
     let killed = dir.path().join("killed");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_sigmap"))
-        .args([
+    kill_once_journaled(
+        &[
             "run",
             file.to_str().unwrap(),
             "--out",
@@ -393,20 +390,9 @@ fn graph2tree_joins_the_sweep_and_a_killed_run_resumes_identically() {
             "-q",
             "--threads",
             "1",
-        ])
-        .spawn()
-        .unwrap();
-    let journal = killed.join("runs.journal.csv");
-    let start = std::time::Instant::now();
-    while std::fs::read_to_string(&journal).map_or(true, |j| !j.contains(",octomap,")) {
-        assert!(start.elapsed().as_secs() < 300, "no run finished");
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    child.kill().unwrap();
-    child.wait().unwrap();
-    assert!(
-        !killed.join("summary.csv").exists(),
-        "killed before the end"
+        ],
+        &killed,
+        ",octomap,",
     );
     ok(run_into(&file, &killed, &[]));
     for name in [

@@ -6,28 +6,23 @@
 
 mod common;
 
-use common::{root, sigmap_ok};
+use common::{kill_once_journaled, portable_experiment, sigmap_ok};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// The hall experiment at 5 cm with three seeds, its paths absolute.
 fn coarse_hall(dir: &Path) -> PathBuf {
-    let r = root().display().to_string();
-    let text = std::fs::read_to_string(root().join("experiments/hall.toml"))
-        .unwrap()
-        .replace("\"../", &format!("\"{r}/"))
-        .replace("\"profiles/", &format!("\"{r}/experiments/profiles/"))
-        .replace("resolution = 0.01 ", "resolution = 0.05 ")
-        .replace("seeds = [1, 2]", "seeds = [1, 2, 3]");
-    assert!(text.contains("resolution = 0.05") && text.contains("seeds = [1, 2, 3]"));
-    let path = dir.join("hall.toml");
-    std::fs::write(&path, text).unwrap();
-    path
+    portable_experiment(
+        "hall",
+        dir,
+        &[
+            ("resolution = 0.01 ", "resolution = 0.05 "),
+            ("seeds = [1, 2]", "seeds = [1, 2, 3]"),
+        ],
+    )
 }
 
-/// Starts `sigmap run FILE --out OUT --threads 1 [extra]`, kills it with
-/// SIGKILL once its journal holds a finished seed, and checks it had not
-/// finished.
+/// `sigmap run FILE --out OUT --threads 1 [extra]`, killed once a seed is
+/// journaled.
 fn kill_after_first_seed(file: &Path, out: &Path, extra: &[&str]) {
     let mut args = vec![
         "run",
@@ -39,21 +34,7 @@ fn kill_after_first_seed(file: &Path, out: &Path, extra: &[&str]) {
         "1",
     ];
     args.extend_from_slice(extra);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_sigmap"))
-        .args(&args)
-        .spawn()
-        .unwrap();
-    let journal = out.join("runs.journal.csv");
-    // Polls a file another process writes; the guard only turns a run that
-    // never journals into a failure instead of a hang.
-    let start = std::time::Instant::now();
-    while std::fs::read_to_string(&journal).map_or(true, |j| !j.contains("#end ")) {
-        assert!(start.elapsed().as_secs() < 600, "no seed finished");
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    child.kill().unwrap();
-    child.wait().unwrap();
-    assert!(!out.join("runs.csv").exists(), "killed before the end");
+    kill_once_journaled(&args, out, "#end ");
 }
 
 fn same_files(a: &Path, b: &Path, names: &[&str]) {

@@ -75,3 +75,43 @@ pub fn simulate_quickstart(dir: &std::path::Path, extra: &[&str]) {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// The shipped experiment `experiments/NAME.toml` with its paths absolute
+/// and `edits` made (each must apply), written into `dir` as NAME.toml.
+#[allow(dead_code)] // not every test file edits a shipped experiment
+pub fn portable_experiment(name: &str, dir: &std::path::Path, edits: &[(&str, &str)]) -> PathBuf {
+    let r = root().display().to_string();
+    let mut text = std::fs::read_to_string(root().join(format!("experiments/{name}.toml")))
+        .unwrap()
+        .replace("\"../", &format!("\"{r}/"))
+        .replace("\"profiles/", &format!("\"{r}/experiments/profiles/"));
+    for (from, to) in edits {
+        assert!(text.contains(from), "{name}.toml has no {from}");
+        text = text.replace(from, to);
+    }
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Starts `sigmap ARGS` (a `run` into `out`), kills it with SIGKILL once
+/// `out`'s journal holds `needle`, and checks it had not finished.
+#[allow(dead_code)] // not every test file kills a run
+pub fn kill_once_journaled(args: &[&str], out: &std::path::Path, needle: &str) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_sigmap"))
+        .args(args)
+        .current_dir(root())
+        .spawn()
+        .expect("start sigmap");
+    let journal = out.join("runs.journal.csv");
+    // Polls a file another process writes; the guard only turns a run that
+    // never journals into a failure instead of a hang.
+    let start = std::time::Instant::now();
+    while std::fs::read_to_string(&journal).map_or(true, |j| !j.contains(needle)) {
+        assert!(start.elapsed().as_secs() < 600, "no run finished");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!out.join("summary.csv").exists(), "killed before the end");
+}
