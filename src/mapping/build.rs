@@ -37,6 +37,27 @@ pub struct BuildExtras<'a> {
     pub measured: Option<&'a [Vec<Pooled>]>,
     /// Called with `k` once the first `k` scans are in the map.
     pub done: Option<&'a (dyn Fn(usize) + Sync)>,
+    /// The most bytes the map's node pools may take ([`Octree::pool_bytes`],
+    /// checked after each scan); `None`: [`MAX_MAP_BYTES`].
+    pub max_bytes: Option<usize>,
+}
+
+/// The most memory a map may take while it is built: 6 GiB. A map that
+/// outgrows it stops with a one-line error after the scan that passed it
+/// (a finer resolution or a longer `max_range` than the scans support),
+/// before the machine runs out of memory.
+pub const MAX_MAP_BYTES: usize = 6 << 30;
+
+/// The error of a map that outgrew `limit` bytes after scan `scan` (1-based)
+/// of `scans`.
+fn outgrown(tree: &Octree, limit: usize, scan: usize, scans: usize) -> String {
+    format!(
+        "the map outgrew {:.2} GB after scan {scan} of {scans} at resolution {} m (sigmap builds \
+         maps of at most {:.2} GB; use a coarser resolution or a shorter max_range)",
+        tree.pool_bytes() as f64 / 1e9,
+        tree.resolution(),
+        limit as f64 / 1e9
+    )
 }
 
 /// Builds the map of `scans` at `resolution` with `method`, in the map
@@ -160,10 +181,15 @@ fn ray_update_map(
     };
     let mut failure = None;
     let mut inserted = 0;
+    let limit = extras.max_bytes.unwrap_or(MAX_MAP_BYTES);
     prepare_and_insert(scans.len(), window(), find, |found| match found {
+        Ok(_) if failure.is_some() => {}
         Ok((updater, hits, misses)) => {
             updater.apply(&mut tree);
             inserted += 1;
+            if tree.pool_bytes() > limit {
+                failure = Some(outgrown(&tree, limit, inserted, scans.len()));
+            }
             if let Some(done) = extras.done {
                 done(inserted);
             }
@@ -356,7 +382,9 @@ fn opdf_map(
     };
     let mut failure = None;
     let mut inserted = 0;
+    let limit = extras.max_bytes.unwrap_or(MAX_MAP_BYTES);
     prepare_and_insert(scans.len(), window(), search, |plans| match plans {
+        Ok(_) if failure.is_some() => {}
         Ok(plans) => {
             for plan in plans {
                 plan.apply(&mut tree, options.clamp);
@@ -365,6 +393,9 @@ fn opdf_map(
                 }
             }
             inserted += 1;
+            if tree.pool_bytes() > limit {
+                failure = Some(outgrown(&tree, limit, inserted, scans.len()));
+            }
             if let Some(done) = extras.done {
                 done(inserted);
             }

@@ -452,6 +452,13 @@ impl Octree {
         }
     }
 
+    /// Bytes the node pools hold (their capacity): what the tree costs in
+    /// memory while it grows.
+    pub fn pool_bytes(&self) -> usize {
+        self.nodes.capacity() * std::mem::size_of::<Node>()
+            + self.finest.capacity() * std::mem::size_of::<f32>()
+    }
+
     /// Releases the pools' spare capacity (after the last update).
     pub fn shrink_to_fit(&mut self) {
         self.nodes.shrink_to_fit();

@@ -202,6 +202,7 @@ pub fn map_recorded(
     let extras = BuildExtras {
         measured: None,
         done: Some(&done),
+        max_bytes: None,
     };
     build_map_with(
         &view,

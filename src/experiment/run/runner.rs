@@ -235,6 +235,7 @@ impl<'a> SeedRun<'a> {
                 let extras = BuildExtras {
                     measured: Some(&self.measured),
                     done: None,
+                    max_bytes: None,
                 };
                 let scans = &self.run.scans;
                 build_map_with(

@@ -190,6 +190,7 @@ fn maps_draw_pooled_beams_without_the_slide_and_the_nees_keeps_it() {
     let extras = BuildExtras {
         measured: Some(&all),
         done: None,
+        max_bytes: None,
     };
     let prepared = PreparedScan::new(&view, &run.scans, 0, extras, Method::Blind).unwrap();
     let origin = prepared.origin.mean;
@@ -282,6 +283,7 @@ fn the_ray_update_ends_its_rays_at_the_pooled_points() {
     let extras = BuildExtras {
         measured: Some(&measured),
         done: None,
+        max_bytes: None,
     };
     let shared = build_map_with(
         &view,
@@ -328,4 +330,30 @@ fn the_experiments_sigma_set_reaches_the_maps() {
     };
     assert!(map(&experiment, Method::Unscented) != paper);
     assert!(map(&experiment, Method::Blind) == blind);
+}
+
+#[test]
+fn a_map_that_outgrows_its_memory_budget_stops_with_one_line() {
+    // The quickstart's maps take about a megabyte; with a budget of 100 kB
+    // each method stops after the scan that passed it, naming the limit.
+    let experiment = quickstart();
+    let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
+    let view = experiment.mapper_view();
+    for method in [Method::RayUpdate, Method::Unscented] {
+        let build = |max_bytes| {
+            let extras = BuildExtras {
+                max_bytes,
+                ..BuildExtras::default()
+            };
+            build_map_with(&view, &run.scans, extras, method, 0.01, &Vector3::zeros())
+        };
+        let whole = build(None).unwrap();
+        assert!(whole.pool_bytes() > 100_000, "{method}");
+        let err = build(Some(100_000)).err().unwrap().to_string();
+        assert!(
+            err.contains("the map outgrew") && err.contains("after scan 1 of 6"),
+            "{method}: {err}"
+        );
+        assert_eq!(err.lines().count(), 1);
+    }
 }
