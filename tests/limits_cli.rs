@@ -257,6 +257,26 @@ fn absurd_sizes_are_refused_before_any_work() {
         "wide.toml",
         "has 2.33e8 cells on its boundary alone",
     );
+    // Beams whose cells the observable mask could not hold: 48 000 beams
+    // out to 2 km at 1 cm (the ray update alone, which has no clearing
+    // bound of its own).
+    let far = portable_quickstart()
+        .replace("max_range = 2.0", "max_range = 2000.0")
+        .replace(
+            r#"methods = ["blind", "unscented", "ray_update"]"#,
+            r#"methods = ["ray_update"]"#,
+        );
+    std::fs::write(d.join("far.toml"), far).unwrap();
+    refused(
+        &[
+            "run",
+            d.join("far.toml").to_str().unwrap(),
+            "--out",
+            d.join("far").to_str().unwrap(),
+        ],
+        "far.toml",
+        "the observable mask sigmap scores over takes at most 5e8",
+    );
     // A workspace of more than 2^31 cells (60 m x 60 m x 3 m at 1 cm) is
     // run: its truth is computed where the beams reach, not over all of it.
     let hall = (

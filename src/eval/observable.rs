@@ -19,6 +19,24 @@ pub struct SeenRay {
     pub hit: bool,
 }
 
+/// The most cell steps the rays of one observable mask may take (their
+/// total length over the resolution): the mask holds at most that many
+/// cells, 8 bytes each in its hash set (5 × 10⁸: about 4.5 GB at worst).
+pub const MAX_MASK_STEPS: f64 = 5e8;
+
+/// Refuses rays whose total length at `resolution` passes
+/// [`MAX_MASK_STEPS`]: `steps` is that total, `what` names the rays.
+pub fn check_mask_steps(steps: f64, resolution: f64, what: &str) -> Result<(), String> {
+    if steps <= MAX_MASK_STEPS {
+        return Ok(());
+    }
+    Err(format!(
+        "{what} cross {steps:.2e} cells at {resolution} m; the observable mask sigmap scores \
+         over takes at most {MAX_MASK_STEPS:.0e} (use a coarser resolution, fewer beams or a \
+         shorter max_range)"
+    ))
+}
+
 /// Morton codes of the cells (at `resolution`) that a ray traversed from its
 /// origin to its end, and of its end cell when it hit a surface.
 pub fn observable_along(

@@ -238,11 +238,23 @@ impl Experiment {
             .join(";")
     }
 
-    /// Checks, before anything is allocated, that a run's ground truth
-    /// stays within bounds: it spans what the beams can reach, the nominal
-    /// sensor positions with `max_range` around them, cut to the workspace.
+    /// Checks, before anything is allocated, that what a run is scored
+    /// with stays within bounds: the observable mask (every beam out to
+    /// `max_range`) and the ground truth, which spans what the beams can
+    /// reach (the nominal sensor positions with `max_range` around them,
+    /// cut to the workspace).
     pub fn check_truth_cost(&self) -> crate::error::Result<()> {
         use crate::geometry::{Point3, Vector3};
+        let beams = (self.scanner.directions().len() * self.viewpoints.len()) as f64;
+        crate::eval::observable::check_mask_steps(
+            beams * self.scanner.max_range / self.resolution,
+            self.resolution,
+            &format!(
+                "{beams:.0} beams out to max_range = {} m",
+                self.scanner.max_range
+            ),
+        )
+        .map_err(|e| Error::input(&self.source, e))?;
         let reach = self.scanner.max_range + self.resolution;
         let mut seen = crate::sim::scene::Bounds {
             min: Point3::from(Vector3::repeat(f64::INFINITY)),
