@@ -257,6 +257,22 @@ fn absurd_sizes_are_refused_before_any_work() {
         "wide.toml",
         "has 2.33e8 cells on its boundary alone",
     );
+    // The registered truth of `sigmap map` covers the whole workspace too.
+    let wide_e = experiment_with(d, "wide_e", "scenes/tabletop.toml", &wide);
+    refused(
+        &[
+            "map",
+            wide_e.to_str().unwrap(),
+            "--method",
+            "registered_truth",
+            "--resolution",
+            "0.001",
+            "--out",
+            gt.to_str().unwrap(),
+        ],
+        "wide.toml",
+        "cells on its boundary alone",
+    );
     // Beams whose cells the observable mask could not hold: 48 000 beams
     // out to 2 km at 1 cm (the ray update alone, which has no clearing
     // bound of its own).

@@ -72,6 +72,11 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
             .join(format!("map_{}.bt", args.method))
     });
     check_octree_path(&out)?;
+    if args.method == Method::RegisteredTruth {
+        // The whole workspace's truth, as the registration places it.
+        let scene = experiment.scene();
+        scene.check_truth_region(&scene.workspace, resolution, "the whole workspace")?;
+    }
     let bar = progress_bar(experiment.viewpoints().len(), "simulating", args.run.quiet);
     let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
