@@ -79,7 +79,7 @@ const FILES: &str = "## Files\n\n\
 | `slice.svg` | a horizontal slice through the first run's maps: each cell's class against the truth |\n\
 | `coverage.svg`, `scores.svg`, `score_<metric>.svg`, `safety.svg` | the charts (the sweep charts with a sweep, the safety curve when ε is swept) |\n\
 | `report.html` | all of the above on one self-contained page |\n\
-| `run.toml` | the inputs' fingerprint: a rerun with other inputs is refused |\n";
+| `run.toml` | the inputs' SHA-256 fingerprint (a rerun with other inputs is refused), each input file's hash, the shard, the external mappers' commands |\n";
 
 #[cfg(test)]
 mod tests {
