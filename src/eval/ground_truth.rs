@@ -105,6 +105,17 @@ impl KeyBox {
         }
     }
 
+    /// The box's corners in the frame of `tree` (its lowest cell's lower
+    /// corner, its highest cell's upper one); `None` for an empty box.
+    pub fn corners(&self, tree: &Octree) -> Option<(Point3, Point3)> {
+        (0..3).all(|k| self.min[k] <= self.max[k]).then(|| {
+            (
+                tree.lattice_point(&Key(self.min), [0; 3]),
+                tree.lattice_point(&Key(self.max), [1; 3]),
+            )
+        })
+    }
+
     /// The key range `[first, last]` on each axis of the cell at `depth`.
     fn range(key: &Key, depth: u8) -> ([u16; 3], [u16; 3]) {
         let span = (1u32 << (DEPTH - depth)) - 1;

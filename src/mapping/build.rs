@@ -179,31 +179,13 @@ fn ray_update_map(
         updater.find_cells(&geometry, &origin, &hits, &misses, view.max_range);
         Ok((updater, hits, misses))
     };
-    let mut failure = None;
-    let mut inserted = 0;
-    let limit = extras.max_bytes.unwrap_or(MAX_MAP_BYTES);
-    prepare_and_insert(scans.len(), window(), find, |found| match found {
-        Ok(_) if failure.is_some() => {}
-        Ok((updater, hits, misses)) => {
-            updater.apply(&mut tree);
-            inserted += 1;
-            if tree.pool_bytes() > limit {
-                failure = Some(outgrown(&tree, limit, inserted, scans.len()));
-            }
-            if let Some(done) = extras.done {
-                done(inserted);
-            }
-            if let Ok(mut spare) = spare.lock() {
-                spare.push((updater, hits, misses));
-            }
+    insert_scans(&mut tree, scans.len(), &extras, find, |tree, found| {
+        let (updater, hits, misses) = found;
+        updater.apply(tree);
+        if let Ok(mut spare) = spare.lock() {
+            spare.push((updater, hits, misses));
         }
-        Err(e) => {
-            failure.get_or_insert(e);
-        }
-    });
-    if let Some(e) = failure {
-        return Err(Error::Usage(e));
-    }
+    })?;
     tree.shrink_to_fit();
     Ok(tree)
 }
@@ -342,6 +324,38 @@ fn shared_nominal_bins<'a>(view: &MapperView<'a>) -> Option<NominalBins<'a>> {
     })
 }
 
+/// [`prepare_and_insert`] for a map: each prepared scan `apply`'d to `tree`
+/// in order, then the tree's memory checked against the build's budget and
+/// `done` told. The first failure (a scan that cannot be prepared, a map
+/// past its budget) stops the applying and is returned.
+fn insert_scans<T: Send>(
+    tree: &mut Octree,
+    count: usize,
+    extras: &BuildExtras,
+    prepare: impl Fn(usize) -> std::result::Result<T, String> + Sync,
+    mut apply: impl FnMut(&mut Octree, T) + Send,
+) -> Result<()> {
+    let limit = extras.max_bytes.unwrap_or(MAX_MAP_BYTES);
+    let (mut failure, mut inserted) = (None, 0);
+    prepare_and_insert(count, window(), prepare, |prepared| match prepared {
+        Ok(_) if failure.is_some() => {}
+        Ok(scan) => {
+            apply(tree, scan);
+            inserted += 1;
+            if tree.pool_bytes() > limit {
+                failure = Some(outgrown(tree, limit, inserted, count));
+            }
+            if let Some(done) = extras.done {
+                done(inserted);
+            }
+        }
+        Err(e) => {
+            failure.get_or_insert(e);
+        }
+    });
+    failure.map_or(Ok(()), |e| Err(Error::Usage(e)))
+}
+
 /// The last of the `spare` buffers, if any.
 fn pop<T>(spare: &Mutex<Vec<T>>) -> Option<T> {
     spare.lock().ok().and_then(|mut s| s.pop())
@@ -380,34 +394,15 @@ fn opdf_map(
         }
         Ok(plans)
     };
-    let mut failure = None;
-    let mut inserted = 0;
-    let limit = extras.max_bytes.unwrap_or(MAX_MAP_BYTES);
-    prepare_and_insert(scans.len(), window(), search, |plans| match plans {
-        Ok(_) if failure.is_some() => {}
-        Ok(plans) => {
-            for plan in plans {
-                plan.apply(&mut tree, options.clamp);
-                if let Ok(mut spare) = spare_plans.lock() {
-                    spare.push(plan);
-                }
-            }
-            inserted += 1;
-            if tree.pool_bytes() > limit {
-                failure = Some(outgrown(&tree, limit, inserted, scans.len()));
-            }
-            if let Some(done) = extras.done {
-                done(inserted);
+    insert_scans(&mut tree, scans.len(), &extras, search, |tree, plans| {
+        for plan in plans {
+            plan.apply(tree, options.clamp);
+            if let Ok(mut spare) = spare_plans.lock() {
+                spare.push(plan);
             }
         }
-        Err(e) => {
-            failure.get_or_insert(e);
-        }
-    });
-    match failure {
-        Some(e) => Err(Error::Usage(e)),
-        None => Ok(tree),
-    }
+    })?;
+    Ok(tree)
 }
 
 /// The OPDF map's last steps once every grid is merged: the `correlated`

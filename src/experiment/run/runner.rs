@@ -71,13 +71,13 @@ pub fn registered_truth(
 /// cells that spans its observable mask (the same value on every scored
 /// cell as [`ground_truth`], in time and memory that follow the observed
 /// volume, not the workspace).
-pub fn run_truth(experiment: &Experiment, seed: u64, observable: &FxHashSet<u64>) -> Octree {
+pub fn run_truth(experiment: &Experiment, seed: u64, region: &KeyBox) -> Octree {
     let offset = experiment.map_offset(seed);
     voxelise_within(
         experiment.scene(),
         experiment.resolution(),
         &Isometry3::translation(offset.x, offset.y, offset.z),
-        &KeyBox::spanning(observable.iter().copied()),
+        region,
     )
 }
 
@@ -92,6 +92,8 @@ pub struct SeedOutcome {
     pub maps: Vec<Octree>,
     /// The truth ([`run_truth`]).
     pub truth: Octree,
+    /// The cells it was computed over: the box its observable mask spans.
+    pub region: KeyBox,
 }
 
 /// Where the run's registration places the scene in the map frame:
@@ -126,7 +128,7 @@ pub fn observable(
 pub fn run_seed(experiment: &Experiment, seed: u64) -> Result<SeedOutcome> {
     let start = Instant::now();
     let seed_run = SeedRun::new(experiment, seed)?;
-    let truth = run_truth(experiment, seed, &seed_run.observable);
+    let truth = run_truth(experiment, seed, &seed_run.region);
     let simulate_s = start.elapsed().as_secs_f64();
     let cell = Experiment::cell_label(experiment.cell());
     let (mut rows, mut timings, mut maps) = (Vec::new(), Vec::new(), Vec::new());
@@ -181,6 +183,7 @@ pub fn run_seed(experiment: &Experiment, seed: u64) -> Result<SeedOutcome> {
         timings,
         maps,
         truth,
+        region: seed_run.region,
     })
 }
 
@@ -192,6 +195,8 @@ struct SeedRun<'a> {
     run: SimulatedRun,
     offset: Vector3,
     observable: FxHashSet<u64>,
+    /// The box of cells the mask spans, which the truths are computed over.
+    region: KeyBox,
     measured: Vec<Vec<Pooled>>,
 }
 
@@ -200,6 +205,7 @@ impl<'a> SeedRun<'a> {
         let run = simulate(experiment, seed, |_| {})?;
         let offset = experiment.map_offset(seed);
         let observable = observable(experiment, &run.truth.scans, &offset);
+        let region = KeyBox::spanning(observable.iter().copied());
         // What each scan measured (pooled or not): the same for every method.
         let view = experiment.mapper_view();
         let measured = run
@@ -214,6 +220,7 @@ impl<'a> SeedRun<'a> {
             run,
             offset,
             observable,
+            region,
             measured,
         })
     }
@@ -229,7 +236,7 @@ impl<'a> SeedRun<'a> {
                 &self.run.truth,
                 experiment.resolution(),
                 &self.offset,
-                &KeyBox::spanning(self.observable.iter().copied()),
+                &self.region,
             )),
             RunMethod::Own(method) => {
                 let extras = BuildExtras {
@@ -444,7 +451,7 @@ mod tests {
             let offset = experiment.map_offset(seed);
             let seen = observable(&experiment, &run.truth.scans, &offset);
             let (around, whole) = (
-                run_truth(&experiment, seed, &seen),
+                run_truth(&experiment, seed, &KeyBox::spanning(seen.iter().copied())),
                 ground_truth(&experiment, seed),
             );
             let mut known = 0;

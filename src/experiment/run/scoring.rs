@@ -69,7 +69,11 @@ pub fn score_external(
     let run = simulate(experiment, seed, |_| {})?;
     let offset = experiment.map_offset(seed);
     let observable = observable(experiment, &run.truth.scans, &offset);
-    let truth = run_truth(experiment, seed, &observable);
+    let truth = run_truth(
+        experiment,
+        seed,
+        &KeyBox::spanning(observable.iter().copied()),
+    );
     let cell = Experiment::cell_label(experiment.cell());
     let mut row = row_of(map, &truth, &observable, RowOf { cell, seed, name });
     row.resolution = experiment.resolution();

@@ -5,6 +5,7 @@
 //! merge never reuses results of other inputs; docs/architecture.md).
 
 use crate::error::{Error, Result};
+use crate::eval::ground_truth::KeyBox;
 use crate::experiment::output::folder_readme::write_folder_readme;
 use crate::experiment::run::runner::{read_rows, run_seed, write_rows, RunRow, TimingRow};
 use crate::experiment::study::journal::{
@@ -16,7 +17,6 @@ use crate::experiment::study::summary::{
 use crate::experiment::Experiment;
 use crate::experiment::RunMethod;
 use crate::experiment::{charts::results, output::report};
-use crate::geometry::Vector3;
 use crate::mapping::octomap_io::write_octree;
 use crate::mapping::Octree;
 use rayon::prelude::*;
@@ -112,7 +112,13 @@ pub fn run_experiment(
         .map(|&(c, seed)| {
             let outcome = run_seed(&cells[c], seed)?;
             if (c, seed) == first {
-                write_first_maps(&out, &cells[0], seed, &outcome.truth, &outcome.maps)?;
+                write_first_maps(
+                    &out,
+                    &cells[0],
+                    seed,
+                    (&outcome.truth, &outcome.region),
+                    &outcome.maps,
+                )?;
             }
             journal.append(&outcome.rows, &outcome.timings)?;
             finished(outcome.rows.len());
@@ -248,7 +254,7 @@ fn write_first_maps(
     out: &Path,
     cell: &Experiment,
     seed: u64,
-    truth: &Octree,
+    (truth, region): (&Octree, &KeyBox),
     maps: &[Octree],
 ) -> Result<()> {
     for (method, map) in cell.methods().iter().zip(maps) {
@@ -266,19 +272,12 @@ fn write_first_maps(
     };
     // The truth is known around the observed cells only: the slice spans
     // that part of the workspace.
-    let mut known = crate::sim::scene::Bounds {
-        min: crate::geometry::Point3::from(Vector3::repeat(f64::INFINITY)),
-        max: crate::geometry::Point3::from(Vector3::repeat(f64::NEG_INFINITY)),
-    };
-    truth.visit_leaves(|leaf| {
-        let half = Vector3::repeat(truth.node_size(leaf.depth) / 2.0);
-        let centre = truth.center(&leaf.key, leaf.depth);
-        known.min = known.min.inf(&(centre - half));
-        known.max = known.max.sup(&(centre + half));
-    });
-    if known.intersects(&workspace) {
-        workspace.min = workspace.min.sup(&known.min);
-        workspace.max = workspace.max.inf(&known.max);
+    if let Some((min, max)) = region.corners(truth) {
+        let known = crate::sim::scene::Bounds { min, max };
+        if known.intersects(&workspace) {
+            workspace.min = workspace.min.sup(&known.min);
+            workspace.max = workspace.max.inf(&known.max);
+        }
     }
     let pairs: Vec<_> = cell.methods().iter().cloned().zip(maps.iter()).collect();
     results::plot_slice(
