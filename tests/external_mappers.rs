@@ -162,14 +162,24 @@ fn a_mapper_joins_the_sweep_like_sigmaps_own_methods() {
         tmp.join("sigmap-mapper-4999999-77"),
         tmp.join("sigmap-mapper-4999999-78"),
     );
-    std::fs::create_dir_all(left.join("work")).unwrap();
-    std::fs::create_dir_all(&failed).unwrap();
+    let foreign = tmp.join("sigmap-mapper-4999999-79");
+    for folder in [&left, &failed, &foreign] {
+        std::fs::create_dir_all(folder.join("work")).unwrap();
+    }
+    for folder in [&left, &failed] {
+        std::fs::write(folder.join(".sigmap-output"), "written by sigmap\n").unwrap();
+    }
     std::fs::write(failed.join("FAILED.txt"), "the command failed\n").unwrap();
     let out = dir.path().join("out");
     ok(run_into(&file, &out, &[]));
     assert!(!left.exists(), "a killed run's leftover is removed");
     assert!(failed.exists(), "a failed run's folder is kept");
+    assert!(
+        foreign.exists(),
+        "a folder sigmap did not mark is not sigmap's"
+    );
     std::fs::remove_dir_all(&failed).unwrap();
+    std::fs::remove_dir_all(&foreign).unwrap();
     // The same scans through the export (f32 points) and sigmap's recorded
     // ray update: the ray update's rows.
     rows_match_the_ray_update(&out, "recorded", 1e-3);

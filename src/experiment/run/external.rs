@@ -456,7 +456,12 @@ impl PrivateFolder {
             let path =
                 std::env::temp_dir().join(format!("sigmap-mapper-{}-{n}", std::process::id()));
             match std::fs::create_dir(&path) {
-                Ok(()) => return Ok(Self { path }),
+                Ok(()) => {
+                    // Marked as sigmap's: only a marked folder is ever taken
+                    // for a leftover and removed.
+                    std::fs::write(path.join(crate::files::MARKER), "written by sigmap\n")?;
+                    return Ok(Self { path });
+                }
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
                 Err(e) => return Err(e),
             }
@@ -470,8 +475,11 @@ impl PrivateFolder {
 }
 
 /// Removes the private folders a killed sigmap left (`sigmap-mapper-PID-N`
-/// of a process that no longer runs, without a [`FAILED`] mark); those of
-/// failed runs, named in their error, are left to the user.
+/// of a process that no longer runs, carrying sigmap's [`MARKER`] and no
+/// [`FAILED`] mark); those of failed runs, named in their error, and any
+/// folder sigmap did not make are left alone.
+///
+/// [`MARKER`]: crate::files::MARKER
 fn remove_leftovers() {
     let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
         return;
@@ -486,7 +494,8 @@ fn remove_leftovers() {
             continue;
         };
         let path = entry.path();
-        if crate::files::process_gone(pid) && !path.join(FAILED).exists() && path.is_dir() {
+        let ours = path.join(crate::files::MARKER).is_file() && !path.join(FAILED).exists();
+        if ours && crate::files::process_gone(pid) {
             let _ = std::fs::remove_dir_all(&path);
         }
     }
