@@ -6,7 +6,9 @@
 
 mod common;
 
-use common::{kill_once_journaled, portable_experiment, portable_quickstart, root, sigmap};
+use common::{
+    kill_once_journaled, ok, portable_experiment, portable_quickstart, root, run_into, sigmap,
+};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -53,28 +55,6 @@ fn sigmap_mapper(name: &str) -> String {
         "-q",
     ]);
     format!("[[mapper]]\nname = \"{name}\"\ncommand = {command}\nmap = \"{{dir}}/map.ot\"\n")
-}
-
-/// `sigmap run FILE --out OUT -q EXTRA...`.
-fn run_into(file: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
-    let mut args = vec![
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ];
-    args.extend_from_slice(extra);
-    sigmap(&args)
-}
-
-/// Asserts that `run` succeeded, showing its stderr if not.
-fn ok(run: std::process::Output) {
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
 }
 
 /// Asserts that the file at `path` has a line holding `needle`.

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{kill_once_journaled, portable_experiment, sigmap_ok};
+use common::{kill_once_journaled, ok, portable_experiment, run_into, sigmap_ok};
 use std::path::{Path, PathBuf};
 
 /// The hall experiment at 5 cm with three seeds, its paths absolute.
@@ -21,8 +21,8 @@ fn coarse_hall(dir: &Path) -> PathBuf {
     )
 }
 
-/// `sigmap run FILE --out OUT --threads 1 [extra]`, killed once a seed is
-/// journaled.
+/// `sigmap run FILE --out OUT -q --threads 1 [extra]`, killed once a seed
+/// is journaled.
 fn kill_after_first_seed(file: &Path, out: &Path, extra: &[&str]) {
     let mut args = vec![
         "run",
@@ -51,17 +51,7 @@ fn same_files(a: &Path, b: &Path, names: &[&str]) {
 fn a_killed_run_and_a_killed_shard_of_the_hall_lose_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let file = coarse_hall(dir.path());
-    let run = |out: &Path, extra: &[&str]| {
-        let mut args = vec![
-            "run",
-            file.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "-q",
-        ];
-        args.extend_from_slice(extra);
-        sigmap_ok(&args);
-    };
+    let run = |out: &Path, extra: &[&str]| ok(run_into(&file, out, extra));
     let whole = dir.path().join("whole");
     run(&whole, &[]);
     let files = ["runs.csv", "summary.csv", "paired.csv", "report.html"];

@@ -115,3 +115,31 @@ pub fn kill_once_journaled(args: &[&str], out: &std::path::Path, needle: &str) {
     child.wait().unwrap();
     assert!(!out.join("summary.csv").exists(), "killed before the end");
 }
+
+/// `sigmap run FILE --out OUT -q EXTRA...`.
+#[allow(dead_code)] // not every test file runs experiments
+pub fn run_into(
+    file: &std::path::Path,
+    out: &std::path::Path,
+    extra: &[&str],
+) -> std::process::Output {
+    let mut args = vec![
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ];
+    args.extend_from_slice(extra);
+    sigmap(&args)
+}
+
+/// Asserts that `run` succeeded, showing its stderr if not.
+#[allow(dead_code)] // not every test file runs experiments
+pub fn ok(run: std::process::Output) {
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
