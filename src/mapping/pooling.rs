@@ -215,16 +215,17 @@ fn one_plane(points: &[&Neighbour]) -> Option<(Plane, [f64; 9])> {
     (chi2 <= CHI2_99[points.len() - 4]).then_some((plane, variances))
 }
 
-/// Whether 5 to 9 hits, each `(direction, range, σ)` (a unit direction from
-/// one origin and the range noise along it), are one plane plus noise: the
-/// windows' test (docs/math.md §5.5), here on a local grid's beams.
-pub(crate) fn hits_on_one_plane(hits: &[(Vector3, f64, f64)]) -> bool {
+/// Whether 5 to 9 hits, each `(direction, range, σ, lateral)` (a unit
+/// direction from one origin, the range noise along it and the sideways
+/// noise), are one plane plus noise: the windows' test (docs/math.md §5.5),
+/// here on a local grid's beams.
+pub(crate) fn hits_on_one_plane(hits: &[(Vector3, f64, f64, f64)]) -> bool {
     if hits.len() > 9 {
         return false;
     }
     let mut neighbours = [Neighbour::new(&Vector3::x(), 0.0, 0.0, 0.0); 9];
-    for (slot, (d, r, sigma)) in neighbours.iter_mut().zip(hits) {
-        *slot = Neighbour::new(d, *r, *sigma, 0.0);
+    for (slot, (d, r, sigma, lateral)) in neighbours.iter_mut().zip(hits) {
+        *slot = Neighbour::new(d, *r, *sigma, *lateral);
     }
     let refs: [&Neighbour; 9] = std::array::from_fn(|i| &neighbours[i]);
     one_plane(&refs[..hits.len()]).is_some()

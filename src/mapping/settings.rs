@@ -24,6 +24,72 @@ pub struct MapSettings {
     /// neighbouring beams that lie on one plane (docs/math.md §5.4; OPDF
     /// methods).
     pub interpolate_beams: bool,
+    /// Which neighbouring beams the samples join (docs/math.md §5.4).
+    pub sample_gate: SampleGate,
+}
+
+/// The test that decides where surface samples join neighbouring beams: the
+/// windows' χ² test at 99% on nine hits (docs/math.md §5.4, §5.5), with each
+/// hit's noise as the sensor model gives it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SampleGate {
+    /// Whether each hit's noise holds the sideways share of its direction
+    /// noise, `r σ_a` (the model, `sample_gate = "model"`), or its range
+    /// noise alone (`"range"`).
+    pub direction_noise: bool,
+    /// How many times each hit's noise is widened (`"model*k"`): 1 is the
+    /// model; more is a tuned gate, kept to compare against.
+    pub widening: f64,
+}
+
+impl Default for SampleGate {
+    fn default() -> Self {
+        Self {
+            direction_noise: true,
+            widening: 1.0,
+        }
+    }
+}
+
+impl SampleGate {
+    /// The gate an experiment file names: `"model"` (range and direction
+    /// noise), `"range"` (range noise alone), either widened `k` times as
+    /// `"model*k"` or `"range*k"` (1 ≤ k ≤ 100); or what to write instead.
+    pub fn from_name(name: &str) -> Result<Self, String> {
+        let bad = || {
+            format!(
+                "sample_gate = \"{name}\": use \"model\" (range and direction noise), \"range\" \
+                 (range noise alone), or either widened k times as \"model*k\" (1 <= k <= 100)"
+            )
+        };
+        let (noise, widening) = match name.split_once('*') {
+            Some((noise, k)) => (noise.trim(), k.trim().parse::<f64>().map_err(|_| bad())?),
+            None => (name, 1.0),
+        };
+        let direction_noise = match noise {
+            "model" => true,
+            "range" => false,
+            _ => return Err(bad()),
+        };
+        if !(widening.is_finite() && (1.0..=100.0).contains(&widening)) {
+            return Err(bad());
+        }
+        Ok(Self {
+            direction_noise,
+            widening,
+        })
+    }
+
+    /// The noise the gate gives a hit at range `r` with range noise `sigma`
+    /// and direction noise `angular_sigma`: (along the beam, sideways).
+    pub fn noise(&self, r: f64, sigma: f64, angular_sigma: f64) -> (f64, f64) {
+        let lateral = if self.direction_noise {
+            r * angular_sigma
+        } else {
+            0.0
+        };
+        (sigma * self.widening, lateral * self.widening)
+    }
 }
 
 /// The settings as probabilities, the way OctoMap's setters and the
@@ -105,6 +171,7 @@ impl MapSettings {
             },
             beam_pooling,
             interpolate_beams: false,
+            sample_gate: SampleGate::default(),
         })
     }
 
@@ -160,5 +227,22 @@ mod tests {
         assert!(bad(|p| p.p_hi = 0.4).starts_with("map.p_hi"));
         let risk = MapSettings::new(&MapProbabilities::default(), Some(0.7), Pooling::Off);
         assert!(risk.unwrap_err().starts_with("risk = 0.7"));
+    }
+
+    #[test]
+    fn sample_gates_read_their_names_and_refuse_others() {
+        let gate = |name: &str| SampleGate::from_name(name);
+        assert_eq!(gate("model"), Ok(SampleGate::default()));
+        let range = gate("range").unwrap();
+        assert!(!range.direction_noise && range.widening == 1.0);
+        let widened = gate("range*6").unwrap();
+        assert!(!widened.direction_noise && widened.widening == 6.0);
+        assert_eq!(widened.noise(0.5, 0.002, 0.001), (0.012, 0.0));
+        let (along, lateral) = gate("model").unwrap().noise(0.5, 0.002, 0.001);
+        assert_eq!((along, lateral), (0.002, 0.0005));
+        for bad in ["modle", "range*0.5", "model*", "model*nan", "range*1000"] {
+            let message = gate(bad).unwrap_err();
+            assert!(message.starts_with(&format!("sample_gate = \"{bad}\"")), "{message}");
+        }
     }
 }

@@ -14,6 +14,7 @@ use super::{BoxSummary, LocalGrid};
 use crate::geometry::Vector3;
 use crate::mapping::chord::{Beam, TAIL};
 use crate::mapping::pooling::hits_on_one_plane;
+use crate::mapping::settings::SampleGate;
 use rayon::prelude::*;
 
 /// Samples per beam spacing along each axis of a block: a sample every
@@ -36,18 +37,20 @@ impl LocalGrid {
     }
 
     /// Whether the 3 × 3 bins around `(a, e)` hold one hit each, all on one
-    /// plane (the windows' χ² test at 99%, with each beam's σ).
-    fn window_on_one_plane(&self, a: usize, e: usize) -> bool {
+    /// plane (the windows' χ² test at 99%, with each hit's noise as `gate`
+    /// gives it from the beam's σ and the direction noise `angular_sigma`).
+    fn window_on_one_plane(&self, a: usize, e: usize, gate: &SampleGate, angular_sigma: f64) -> bool {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
         if a == 0 || e == 0 || a + 1 >= na || e + 1 >= ne {
             return false;
         }
-        let mut hits = [(Vector3::zeros(), 0.0, 0.0); 9];
+        let mut hits = [(Vector3::zeros(), 0.0, 0.0, 0.0); 9];
         for (i, slot) in hits.iter_mut().enumerate() {
             let Some(beam) = self.single_hit(a + i / 3 - 1, e + i % 3 - 1) else {
                 return false;
             };
-            *slot = (beam.direction, beam.range, beam.sigma);
+            let (sigma, lateral) = gate.noise(beam.range, beam.sigma, angular_sigma);
+            *slot = (beam.direction, beam.range, sigma, lateral);
         }
         hits_on_one_plane(&hits)
     }
@@ -57,11 +60,14 @@ impl LocalGrid {
     /// holds it), and widens the bins' summaries by the samples' bands, so
     /// that the merge's shortcuts stay exact. A point on an edge between two
     /// blocks is taken once: by the block whose lower edge it is, or by the
-    /// other when that block is not sampled. Call it once per grid.
-    pub fn add_surface_samples(&mut self) {
+    /// other when that block is not sampled. `angular_sigma` is the beams'
+    /// direction noise (rad). Call it once per grid.
+    pub fn add_surface_samples(&mut self, gate: &SampleGate, angular_sigma: f64) {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
         let mut planar = Vec::new();
-        super::per_bin_into(&mut planar, (na, ne), |a, e| self.window_on_one_plane(a, e));
+        super::per_bin_into(&mut planar, (na, ne), |a, e| {
+            self.window_on_one_plane(a, e, gate, angular_sigma)
+        });
         let sampled = |a: usize, e: usize| {
             a + 1 < na
                 && e + 1 < ne

@@ -2,6 +2,7 @@
 //! above a floor, looking straight down.
 
 use super::*;
+use crate::mapping::settings::SampleGate;
 use crate::geometry::Point3;
 use crate::mapping::chord::CellModel;
 use crate::mapping::merge::{cell_occupancy, merge, Cell, MergeOptions};
@@ -551,7 +552,7 @@ fn merge_equals_the_cell_model_with_surface_samples() {
     };
     let plain = plane_grid_with(origin, &h, &v, FLOOR, Some(7), mixed);
     let mut grid = plain.clone();
-    grid.add_surface_samples();
+    grid.add_surface_samples(&SampleGate::default(), 0.0);
     assert!(grid.samples().0.len() > 500, "{}", grid.samples().0.len());
     let options = MergeOptions::default();
     let (mut tree, mut without) = (Octree::new(0.01), Octree::new(0.01));

@@ -27,6 +27,9 @@ pub(super) struct ExperimentFile {
     pub(super) beam_pooling: PoolingSpec,
     #[serde(default)]
     pub(super) interpolate_beams: SwitchSpec,
+    /// The samples' gate: `"model"` (default), `"range"`, or `"model*k"`.
+    #[serde(default = "default_sample_gate")]
+    pub(super) sample_gate: String,
     /// `[map]`: each setting may be swept as `experiment.map.<name>` once set.
     #[serde(default)]
     pub(super) map: MapProbabilities,
@@ -154,6 +157,10 @@ impl SwitchSpec {
             },
         }
     }
+}
+
+fn default_sample_gate() -> String {
+    "model".into()
 }
 
 fn default_seed() -> u64 {

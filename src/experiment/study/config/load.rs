@@ -5,6 +5,7 @@
 use super::file::{ExperimentFile, MountSpec};
 use super::*;
 use crate::mapping::Method;
+use crate::mapping::settings::SampleGate;
 use crate::sim::robot::KinematicChain;
 
 /// A sweep cell's values, by the file they change (experiment, profile,
@@ -231,6 +232,7 @@ fn map_settings(
         Some(on) => on,
         None => file.interpolate_beams.on("interpolate_beams")?,
     };
+    map.sample_gate = SampleGate::from_name(&file.sample_gate)?;
     Ok(map)
 }
 
