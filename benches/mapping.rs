@@ -28,7 +28,11 @@ fn bench(c: &mut Criterion) {
         env!("CARGO_MANIFEST_DIR"),
         "/experiments/quickstart.toml"
     ));
-    let experiment = Experiment::load(path).expect("quickstart");
+    // The paper's configuration (raw beams, no samples, no risk level), as
+    // the numbers of docs/performance.md were measured; the quickstart
+    // itself leaves them to sigmap's defaults (docs/math.md §5.7).
+    let paper = Overrides::paper_configuration();
+    let experiment = Experiment::load_with(path, &[], &paper).expect("quickstart");
     let run = simulate(&experiment, 1, |_| {}).expect("simulate");
     let view = experiment.mapper_view();
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
@@ -120,7 +124,7 @@ fn bench(c: &mut Criterion) {
     for pooling in [Pooling::Faces, Pooling::Windows] {
         let overrides = Overrides {
             beam_pooling: Some(pooling),
-            ..Overrides::default()
+            ..Overrides::paper_configuration()
         };
         let experiment = Experiment::load_with(path, &[], &overrides).expect("quickstart");
         let view = experiment.mapper_view();

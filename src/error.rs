@@ -234,7 +234,12 @@ fn set_value(
                 toml::Value::Float(*i as f64)
             }
         }
-        (toml::Value::String(_), toml::Value::String(_)) => *slot = new.clone(),
+        // A word, or a setting that is a word or a number (`risk = "off"`
+        // swept over levels): the experiment's schema checks what the sweep
+        // put there.
+        (toml::Value::String(_), toml::Value::String(_) | toml::Value::Float(_)) => {
+            *slot = new.clone();
+        }
         _ => {
             return Err(format!(
                 "sweep field '{field}' holds {}, the sweep gives {}",

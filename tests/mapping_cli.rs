@@ -56,14 +56,15 @@ fn maps_are_written_and_carry_free_space_and_surfaces() {
 fn interpolate_beams_adds_surface_to_opdf_maps_only() {
     // Surface samples between beams (docs/math.md §5.4) count as surface
     // evidence in the OPDF maps (more occupied cells); the ray update takes
-    // no samples.
+    // no samples. The flag alone turns them on, `off` off (the default is
+    // on: docs/math.md §5.7).
     let dir = tempfile::tempdir().unwrap();
     let build = |method: &str, samples: bool| {
         let out = dir.path().join(format!("{method}_{samples}.ot"));
         let extra: &[&str] = if samples {
             &["--interpolate-beams"]
         } else {
-            &[]
+            &["--interpolate-beams", "off"]
         };
         let run = map_quickstart_at_2cm(method, &out, extra);
         assert!(
@@ -433,4 +434,31 @@ fn score_against_a_scene_with_recorded_scans() {
     );
     let out = sigmap(&["score", &map, "--scene", &scene]);
     assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn risk_defaults_to_one_half_and_may_be_set_or_turned_off() {
+    // The quickstart leaves `risk` to the default, 0.5 (docs/math.md §5.7):
+    // `--risk 0.5` gives the same file, `--risk off` another, and a level
+    // out of range is refused naming the flag.
+    let dir = tempfile::tempdir().unwrap();
+    let build = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(format!("{name}.ot"));
+        let run = map_quickstart_at_2cm("unscented", &out, extra);
+        (run, out)
+    };
+    let (default, default_map) = build("default", &[]);
+    let (half, half_map) = build("half", &["--risk", "0.5"]);
+    let (off, off_map) = build("off", &["--risk", "off"]);
+    assert!(default.status.success() && half.status.success() && off.status.success());
+    let bytes = |p: &Path| std::fs::read(p).unwrap();
+    assert_eq!(bytes(&default_map), bytes(&half_map));
+    assert_ne!(bytes(&default_map), bytes(&off_map));
+    let (bad, _) = build("bad", &["--risk", "0.7"]);
+    let message = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(2), "{message}");
+    assert!(
+        message.contains("--risk: ") && message.contains("risk = 0.7"),
+        "{message}"
+    );
 }

@@ -370,7 +370,9 @@ fn map_scans_agrees_with_graph2tree_on_a_log2graph_graph() {
     assert!(differ * 1000 <= known, "{differ} of {known} differ");
 
     // An OPDF method on the same graph, scored against the quickstart's truth
-    // (the export is in the run's map frame), beside sigmap's own OPDF map.
+    // (the export is in the run's map frame), beside sigmap's own OPDF map
+    // with the settings a recorded graph gets by default (no pooling, no
+    // samples, the risk level 0.5).
     let recorded = dir.path().join("recorded_unscented.ot");
     map_scans("unscented", &recorded);
     let simulated = dir.path().join("simulated_unscented.ot");
@@ -380,6 +382,10 @@ fn map_scans_agrees_with_graph2tree_on_a_log2graph_graph() {
             "experiments/quickstart.toml",
             "--method",
             "unscented",
+            "--beam-pooling",
+            "off",
+            "--interpolate-beams",
+            "off",
             "-q",
             "--out",
         ])

@@ -202,6 +202,15 @@ fn the_quickstart_pairs_every_method_with_the_ray_update() {
     assert!(rows.iter().all(|r| r[1] != "ray_update" && r[4] != "anees"));
     let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
     assert!(html.contains("<table class=\"paired\">") && html.contains("against ray_update"));
+    // The quickstart leaves the map settings to the defaults (docs/math.md
+    // §5.7): the report says what they are and what the risk level costs.
+    assert!(
+        html.contains(
+            "<dd>beam pooling windows, surface samples on (gate model), risk level ε = 0.5</dd>"
+        ) && html.contains("<dt>ray update</dt><dd>beam pooling off</dd>"),
+        "{html}"
+    );
+    assert!(html.contains("use the risk level ε = 0.5") && html.contains("<b>unknown</b>"));
 }
 
 /// `also_paired`: every method is also paired against the listed ones, with

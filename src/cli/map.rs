@@ -11,7 +11,7 @@ use crate::experiment::{self, write_rays, Experiment, Overrides};
 use crate::mapping::method::REGISTERED_TRUTH_FROM_SCANS;
 use crate::mapping::octomap_io::{check_octree_path, write_octree};
 use crate::mapping::octree::Octree;
-use crate::mapping::settings::MapSettings;
+use crate::mapping::settings::{MapProbabilities, MapSettings, OpdfDefaults};
 use crate::mapping::{build_map, Method};
 use crate::sim::profile::ErrorProfile;
 use std::path::{Path, PathBuf};
@@ -37,7 +37,8 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         resolution: args.resolution,
         seed: args.run.seed,
         beam_pooling: args.beam_pooling,
-        interpolate_beams: args.interpolate_beams.then_some(true),
+        interpolate_beams: args.interpolate_beams.as_deref().map(|on| on == "on"),
+        risk: args.risk.map(|r| r.0),
         methods: Some(vec![args.method]),
         grid_offset: None,
     };
@@ -47,7 +48,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
             (
                 "interpolate_beams",
                 "--interpolate-beams",
-                args.interpolate_beams,
+                args.interpolate_beams.is_some(),
             ),
             ("resolution", "--resolution", args.resolution.is_some()),
             (
@@ -55,6 +56,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
                 "--beam-pooling",
                 args.beam_pooling.is_some(),
             ),
+            ("risk", "--risk", args.risk.is_some()),
         ];
         let message = e.to_string();
         match given
@@ -149,11 +151,11 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
         max_range: args.max_range,
         angular_step,
     };
-    let settings = MapSettings {
-        beam_pooling: args.beam_pooling.unwrap_or_default(),
-        interpolate_beams: args.interpolate_beams,
-        ..MapSettings::default()
-    };
+    let beam_pooling = args.beam_pooling.unwrap_or_default();
+    let risk = args.risk.map_or(OpdfDefaults::MEASURED.risk, |r| r.0);
+    let mut settings = MapSettings::new(&MapProbabilities::default(), risk, beam_pooling)
+        .map_err(|e| Error::Usage(format!("--risk: {e}")))?;
+    settings.interpolate_beams = args.interpolate_beams.as_deref() == Some("on");
     let bar = progress_bar(nodes.len(), "mapping scans", args.run.quiet);
     let start = Instant::now();
     let tree = with_threads(args.run.threads, || {

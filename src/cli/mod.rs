@@ -208,10 +208,16 @@ pub(crate) struct MapArgs {
     #[arg(long, value_parser = pooling_parser())]
     beam_pooling: Option<crate::mapping::pooling::Pooling>,
     /// OPDF methods: sample the surface between neighbouring beams whose
-    /// 3x3 window is one plane (docs/math.md §5.4) [default: the
-    /// experiment's `interpolate_beams`; with --scans off].
-    #[arg(long)]
-    interpolate_beams: bool,
+    /// 3x3 window is one plane (docs/math.md §5.4): on (also the flag alone)
+    /// or off [default: the experiment's `interpolate_beams`; with --scans
+    /// off].
+    #[arg(long, num_args = 0..=1, default_missing_value = "on", value_parser = ["on", "off"])]
+    interpolate_beams: Option<String>,
+    /// OPDF methods: the risk level ε of the cell model (docs/math.md
+    /// §5.4), a probability up to 0.5, or off [default: the experiment's
+    /// `risk`; with --scans 0.5, the experiments' default (§5.7)].
+    #[arg(long, value_parser = risk_parser)]
+    risk: Option<RiskArg>,
     #[command(flatten)]
     run: RunOptions,
 }
@@ -397,6 +403,20 @@ fn method_parser() -> impl clap::builder::TypedValueParser<Value = crate::mappin
     use clap::builder::TypedValueParser as _;
     let names = crate::mapping::Method::ALL.map(crate::mapping::Method::as_str);
     clap::builder::PossibleValuesParser::new(names).try_map(|name| name.parse())
+}
+
+/// `--risk`: a level, or `off` (`None`).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RiskArg(pub(crate) Option<f64>);
+
+fn risk_parser(text: &str) -> std::result::Result<RiskArg, String> {
+    if text == "off" {
+        return Ok(RiskArg(None));
+    }
+    match text.parse::<f64>() {
+        Ok(level) => Ok(RiskArg(Some(level))),
+        Err(_) => Err(format!("'{text}': use a probability up to 0.5, or off")),
+    }
 }
 
 /// `--beam-pooling`: off, faces or windows, listed in `--help`.

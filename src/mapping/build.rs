@@ -32,8 +32,9 @@ use std::sync::Mutex;
 pub struct BuildExtras<'a> {
     /// The scans' [`measured_ranges`] (one per scan), when they are computed
     /// once for all methods of a run; `None`: each scan's is computed as its
-    /// grid is built. The ray update's rays end at them only with
-    /// `beam_pooling`, and otherwise at the raw hits, as OctoMap's.
+    /// grid is built. The ray update's rays end at them only when it pools
+    /// as the other methods do (`MapSettings::ray_pooling`), and otherwise
+    /// at its own pooled ranges or the raw hits, as OctoMap's.
     pub measured: Option<&'a [Vec<Pooled>]>,
     /// Called with `k` once the first `k` scans are in the map.
     pub done: Option<&'a (dyn Fn(usize) + Sync)>,
@@ -151,7 +152,9 @@ fn ray_update_map(
 ) -> Result<Octree> {
     let mut tree = Octree::new(resolution);
     let geometry = Octree::new(resolution);
-    let pooling = view.settings.beam_pooling != Pooling::Off;
+    let settings = view.settings;
+    let pooling =
+        settings.ray_pooling != Pooling::Off && settings.ray_pooling == settings.beam_pooling;
     type Spare = (RayUpdater, Vec<Point3>, Vec<Vector3>);
     let spare = Mutex::new(Vec::<Spare>::new());
     let find = |i: usize| -> std::result::Result<Spare, String> {
@@ -164,7 +167,7 @@ fn ray_update_map(
             )
         });
         // With beam pooling the rays end at the pooled points (the run's,
-        // when it computed them for every method).
+        // when it computed them for every method and pools as they do).
         let shared = extras.measured.filter(|_| pooling).map(|m| &m[i][..]);
         let own = match shared {
             Some(_) => None,

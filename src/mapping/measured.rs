@@ -14,18 +14,29 @@ fn hit_range(m: &Measurement) -> Option<f64> {
     (m.status == BeamStatus::Hit).then_some(m.range)
 }
 
-/// What a scan measured along each beam (`None`: no hit): the raw range with the range model's σ, or with `beam_pooling`
-/// the range pooled on its grid's local plane or face (docs/math.md §5.5).
-/// The same for every method: compute it once per scan. [`surface_point`]
-/// is what a map draws from it, [`hit_point`] what the NEES checks. Fails
-/// when pooling needs a regular raster and two beams share a grid bin.
+/// What a scan measured along each beam (`None`: no hit) as the
+/// uncertainty-aware methods draw it: the raw range with the range model's
+/// σ, or with `beam_pooling` the range pooled on its grid's local plane or
+/// face (docs/math.md §5.5). The same for every such method: compute it once
+/// per scan. [`surface_point`] is what a map draws from it, [`hit_point`]
+/// what the NEES checks. Fails when pooling needs a regular raster and two
+/// beams share a grid bin.
 pub fn measured_ranges(
     view: &MapperView,
     layout: &BeamLayout,
     scan: &Scan,
 ) -> Result<Vec<Pooled>, String> {
+    pooled_ranges(view, layout, scan, view.settings.beam_pooling)
+}
+
+/// [`measured_ranges`] with `pooling`.
+fn pooled_ranges(
+    view: &MapperView,
+    layout: &BeamLayout,
+    scan: &Scan,
+    pooling: Pooling,
+) -> Result<Vec<Pooled>, String> {
     let ranges: Vec<Option<f64>> = scan.measurements.iter().map(hit_range).collect();
-    let pooling = view.settings.beam_pooling;
     let pool = |columns: usize, directions: &[Vector3], ranges: &[Option<f64>]| {
         pool_ranges(
             pooling,
@@ -120,18 +131,18 @@ pub fn ray_inputs(layout: &BeamLayout, scan: &Scan) -> (Point3, Vec<Point3>, Vec
     (origin, hits, misses)
 }
 
-/// Where a scan's rays end for the ray update: with beam pooling, at its
-/// pooled [`measured_ranges`]; `None` without pooling (the raw hits, as
-/// OctoMap's).
+/// Where a scan's rays end for the ray update: with its pooling
+/// (`MapSettings::ray_pooling`), at the pooled ranges; `None` without (the
+/// raw hits, as OctoMap's).
 pub fn pooled_ray_ends(
     view: &MapperView,
     layout: &BeamLayout,
     scan: &Scan,
 ) -> Result<Option<Vec<Pooled>>, String> {
-    if view.settings.beam_pooling == Pooling::Off {
-        return Ok(None);
+    match view.settings.ray_pooling {
+        Pooling::Off => Ok(None),
+        pooling => pooled_ranges(view, layout, scan, pooling).map(Some),
     }
-    measured_ranges(view, layout, scan).map(Some)
 }
 
 /// [`ray_inputs`] into buffers of the caller's (reused from scan to scan:

@@ -55,6 +55,15 @@ impl Pooling {
             _ => None,
         }
     }
+
+    /// Its name in experiment files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Off => "off",
+            Self::Faces => "faces",
+            Self::Windows => "windows",
+        }
+    }
 }
 
 /// Pools the hits of one viewpoint, on each beam's 3×3 window, then on the

@@ -17,9 +17,13 @@ pub struct MapSettings {
     pub update: UpdateRule,
     /// What one beam says about one cell (OPDF methods).
     pub model: CellModel,
-    /// Which hits' ranges are pooled with their neighbours on the surface
-    /// they share (docs/math.md §5.5; every method maps the pooled points).
+    /// Which hits' ranges the uncertainty-aware methods pool with their
+    /// neighbours on the surface they share (docs/math.md §5.5).
     pub beam_pooling: Pooling,
+    /// The same for the ray update's rays and the rays `--export-rays`
+    /// writes: [`MapSettings::beam_pooling`] when an experiment sets it,
+    /// otherwise off (OctoMap's rays).
+    pub ray_pooling: Pooling,
     /// Whether each viewpoint's grid samples the surface between
     /// neighbouring beams that lie on one plane (docs/math.md §5.4; OPDF
     /// methods).
@@ -90,6 +94,29 @@ impl SampleGate {
         };
         (sigma * self.widening, lateral * self.widening)
     }
+}
+
+/// What the uncertainty-aware methods do when an experiment leaves a
+/// setting out (docs/math.md §5.7): the configuration that won the paired
+/// comparisons of `paper_defaults.toml` and `paper_shelf_defaults.toml`.
+/// The ray update keeps OctoMap's raw rays unless `beam_pooling` is set.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpdfDefaults {
+    /// `beam_pooling`.
+    pub beam_pooling: Pooling,
+    /// `interpolate_beams`.
+    pub interpolate_beams: bool,
+    /// `risk`.
+    pub risk: Option<f64>,
+}
+
+impl OpdfDefaults {
+    /// The measured defaults.
+    pub const MEASURED: Self = Self {
+        beam_pooling: Pooling::Windows,
+        interpolate_beams: true,
+        risk: Some(0.5),
+    };
 }
 
 /// The settings as probabilities, the way OctoMap's setters and the
@@ -170,9 +197,47 @@ impl MapSettings {
                 risk,
             },
             beam_pooling,
+            ray_pooling: beam_pooling,
             interpolate_beams: false,
             sample_gate: SampleGate::default(),
         })
+    }
+
+    /// Every method pooled alike, as an experiment that sets
+    /// `beam_pooling` has it.
+    pub fn pool_every_method(&mut self, pooling: Pooling) {
+        self.beam_pooling = pooling;
+        self.ray_pooling = pooling;
+    }
+
+    /// The settings of the uncertainty-aware maps and of the ray update in
+    /// words, as an experiment file writes them (for reports).
+    pub fn describe(&self) -> (String, String) {
+        let noise = if self.sample_gate.direction_noise {
+            "model"
+        } else {
+            "range"
+        };
+        let gate = match self.sample_gate.widening {
+            1.0 => noise.to_string(),
+            k => format!("{noise}*{k}"),
+        };
+        let samples = if self.interpolate_beams {
+            format!("on (gate {gate})")
+        } else {
+            "off".into()
+        };
+        let risk = self
+            .model
+            .risk
+            .map_or_else(|| "off".to_string(), |r| format!("ε = {r}"));
+        (
+            format!(
+                "beam pooling {}, surface samples {samples}, risk level {risk}",
+                self.beam_pooling.name()
+            ),
+            format!("beam pooling {}", self.ray_pooling.name()),
+        )
     }
 
     /// The OPDF merge's options: the cell model and the map's clamp.
@@ -242,7 +307,10 @@ mod tests {
         assert_eq!((along, lateral), (0.002, 0.0005));
         for bad in ["modle", "range*0.5", "model*", "model*nan", "range*1000"] {
             let message = gate(bad).unwrap_err();
-            assert!(message.starts_with(&format!("sample_gate = \"{bad}\"")), "{message}");
+            assert!(
+                message.starts_with(&format!("sample_gate = \"{bad}\"")),
+                "{message}"
+            );
         }
     }
 }

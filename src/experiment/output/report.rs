@@ -97,6 +97,7 @@ pub fn render(
         escape(experiment.description())
     );
     let seeds: Vec<String> = experiment.seeds().iter().map(u64::to_string).collect();
+    let (opdf, rays) = experiment.map().describe();
     let methods: Vec<&str> = experiment
         .methods()
         .iter()
@@ -109,6 +110,8 @@ pub fn render(
         ("methods", methods.join(", ")),
         ("resolution", format!("{} m", experiment.resolution())),
         ("sweep cells", experiment.cells().len().to_string()),
+        ("uncertainty-aware maps", opdf),
+        ("ray update", rays),
     ] {
         let _ = writeln!(html, "<dt>{term}</dt><dd>{}</dd>", escape(&value));
     }
@@ -192,6 +195,17 @@ fn headline(
         experiment.reference(),
         experiment.reference()
     );
+    if let Some(risk) = experiment.map().model.risk {
+        let _ = writeln!(
+            html,
+            "<p>The uncertainty-aware maps use the risk level ε = {risk} (docs/math.md §5.4, \
+             §5.7): a cell is called free only when it is free with probability at least \
+             1 − ε, and is left unknown otherwise. What that costs is the <b>unknown</b> \
+             column: the share of the observable cells each map leaves unknown (the ray \
+             update's, which ignores ε, beside it; a sweep over <code>experiment.risk</code> \
+             shows the cost cell by cell).</p>"
+        );
+    }
     let mut cells: Vec<&str> = Vec::new();
     for row in summary {
         if !cells.contains(&row.cell.as_str()) {

@@ -544,7 +544,9 @@ mod tests {
             "/experiments/quickstart.toml"
         )))
         .unwrap();
-        experiment.map_mut().beam_pooling = crate::mapping::pooling::Pooling::Windows;
+        experiment
+            .map_mut()
+            .pool_every_method(crate::mapping::pooling::Pooling::Windows);
         let run = simulate(&experiment, 1, |_| {}).unwrap();
         let view = experiment.mapper_view();
         let (scan, truth) = (&run.scans[0], &run.truth.scans[0]);

@@ -90,10 +90,26 @@ pub struct Overrides {
     pub beam_pooling: Option<crate::mapping::pooling::Pooling>,
     /// `interpolate_beams`.
     pub interpolate_beams: Option<bool>,
+    /// `risk` (`Some(None)`: off).
+    pub risk: Option<Option<f64>>,
     /// `methods` (sigmap's own; the `[[mapper]]` tables still join them).
     pub methods: Option<Vec<crate::mapping::Method>>,
     /// `grid_offset`.
     pub grid_offset: Option<bool>,
+}
+
+impl Overrides {
+    /// The paper's map configuration whatever the file says: raw beams, no
+    /// surface samples, no risk level (sigmap's defaults are otherwise,
+    /// docs/math.md §5.7).
+    pub fn paper_configuration() -> Self {
+        Self {
+            beam_pooling: Some(crate::mapping::pooling::Pooling::Off),
+            interpolate_beams: Some(false),
+            risk: Some(None),
+            ..Self::default()
+        }
+    }
 }
 
 /// A loaded and checked experiment.

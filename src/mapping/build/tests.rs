@@ -142,6 +142,9 @@ fn the_shared_error_is_taken_once_on_the_fused_map() {
 #[test]
 fn pooling_narrows_most_hits_and_only_when_asked() {
     let mut experiment = quickstart();
+    // The quickstart leaves pooling to the default, windows (§5.7).
+    assert_eq!(experiment.map().beam_pooling, Pooling::Windows);
+    experiment.map_mut().pool_every_method(Pooling::Off);
     let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
     let scan = &run.scans[0];
     let along = |e: &Experiment| -> Vec<(f64, f64)> {
@@ -163,7 +166,7 @@ fn pooling_narrows_most_hits_and_only_when_asked() {
     let sigma = |r: f64| range.sigma(r);
     let raw = along(&experiment);
     assert!(raw.iter().all(|(r, s)| (s - sigma(*r)).abs() < 1e-12));
-    experiment.map_mut().beam_pooling = Pooling::Windows;
+    experiment.map_mut().pool_every_method(Pooling::Windows);
     let pooled = along(&experiment);
     assert_eq!(pooled.len(), raw.len());
     let narrowed = pooled.iter().filter(|(r, s)| *s < 0.6 * sigma(*r)).count();
@@ -181,7 +184,7 @@ fn maps_draw_pooled_beams_without_the_slide_and_the_nees_keeps_it() {
     // range's own (the plane's prediction), not the hit's, which adds
     // the slide r σ_a tan θ on a slanted plane.
     let mut experiment = quickstart();
-    experiment.map_mut().beam_pooling = Pooling::Windows;
+    experiment.map_mut().pool_every_method(Pooling::Windows);
     let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
     let view = experiment.mapper_view();
     let scan = &run.scans[0];
@@ -239,7 +242,7 @@ fn the_ray_update_ends_its_rays_at_the_pooled_points() {
         .leaves()
     };
     let raw = ray_map(&experiment);
-    experiment.map_mut().beam_pooling = Pooling::Faces;
+    experiment.map_mut().pool_every_method(Pooling::Faces);
     let view = experiment.mapper_view();
     // OctoMap's update, scan by scan, of rays ending at the pooled points.
     let mut expected = Octree::new(resolution);

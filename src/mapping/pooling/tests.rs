@@ -492,7 +492,11 @@ fn gate_false_alarms(tilt: f64, sigma: f64, angular_sigma: f64, with_lateral: bo
             let a = angular_sigma * normal_draw();
             let b = angular_sigma * normal_draw();
             let range = offset / normal.dot(&turned(d, a, b)) + sigma * normal_draw();
-            let lateral = if with_lateral { range * angular_sigma } else { 0.0 };
+            let lateral = if with_lateral {
+                range * angular_sigma
+            } else {
+                0.0
+            };
             *slot = (*d, range, sigma, lateral);
         }
         if !hits_on_one_plane(&hits) {
@@ -515,7 +519,10 @@ fn the_samples_gate_splits_one_plane_at_its_stated_rate() {
     for sigma in [0.001, 0.002] {
         for tilt_deg in [0.0f64, 45.0, 70.0] {
             let rate = gate_false_alarms(tilt_deg.to_radians(), sigma, 0.0005, true);
-            assert!((0.008..=0.016).contains(&rate), "{sigma} m, {tilt_deg}°: {rate}");
+            assert!(
+                (0.008..=0.016).contains(&rate),
+                "{sigma} m, {tilt_deg}°: {rate}"
+            );
         }
     }
     let range_only = gate_false_alarms(70f64.to_radians(), 0.001, 0.0005, false);

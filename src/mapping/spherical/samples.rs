@@ -39,7 +39,13 @@ impl LocalGrid {
     /// Whether the 3 × 3 bins around `(a, e)` hold one hit each, all on one
     /// plane (the windows' χ² test at 99%, with each hit's noise as `gate`
     /// gives it from the beam's σ and the direction noise `angular_sigma`).
-    fn window_on_one_plane(&self, a: usize, e: usize, gate: &SampleGate, angular_sigma: f64) -> bool {
+    fn window_on_one_plane(
+        &self,
+        a: usize,
+        e: usize,
+        gate: &SampleGate,
+        angular_sigma: f64,
+    ) -> bool {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
         if a == 0 || e == 0 || a + 1 >= na || e + 1 >= ne {
             return false;

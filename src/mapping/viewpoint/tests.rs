@@ -2,13 +2,13 @@
 //! above a floor, looking straight down.
 
 use super::*;
-use crate::mapping::settings::SampleGate;
 use crate::geometry::Point3;
 use crate::mapping::chord::CellModel;
 use crate::mapping::merge::{cell_occupancy, merge, Cell, MergeOptions};
 use crate::mapping::octomap_io::to_ot;
 use crate::mapping::octree::{Clamp, Octree};
 use crate::mapping::opdf::logit;
+use crate::mapping::settings::SampleGate;
 use crate::mapping::spherical::spherical;
 use rand::{Rng, SeedableRng};
 

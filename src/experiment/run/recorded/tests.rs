@@ -131,7 +131,7 @@ fn recorded_scans_map_as_the_simulated_scans_do() {
     // beam is pooled with the same neighbours.
     let mut experiment = experiment;
     for pooling in [Pooling::Off, Pooling::Faces, Pooling::Windows] {
-        experiment.map_mut().beam_pooling = pooling;
+        experiment.map_mut().pool_every_method(pooling);
         let view = experiment.mapper_view();
         for method in [Method::RayUpdate, Method::Unscented] {
             let ours = build_map(&view, &run.scans, method, resolution, &offset).unwrap();
@@ -204,6 +204,7 @@ fn pooling_a_cloud_needs_one_point_per_bin() {
     let experiment = quickstart();
     let settings = MapSettings {
         beam_pooling: Pooling::Faces,
+        ray_pooling: Pooling::Faces,
         ..*experiment.map()
     };
     let exact = UncertainPose::from_sigmas(Pose::identity(), [0.0; 6]);

@@ -20,13 +20,11 @@ pub(super) struct ExperimentFile {
     pub(super) seed: u64,
     #[serde(default = "default_resolution")]
     pub(super) resolution: f64,
-    pub(super) risk: Option<f64>,
+    pub(super) risk: Option<RiskSpec>,
     #[serde(default)]
     pub(super) grid_offset: bool,
-    #[serde(default)]
-    pub(super) beam_pooling: PoolingSpec,
-    #[serde(default)]
-    pub(super) interpolate_beams: SwitchSpec,
+    pub(super) beam_pooling: Option<PoolingSpec>,
+    pub(super) interpolate_beams: Option<SwitchSpec>,
     /// The samples' gate: `"model"` (default), `"range"`, or `"model*k"`.
     #[serde(default = "default_sample_gate")]
     pub(super) sample_gate: String,
@@ -62,12 +60,6 @@ pub(super) struct ExperimentFile {
 pub(super) enum PoolingSpec {
     Switch(bool),
     Named(String),
-}
-
-impl Default for PoolingSpec {
-    fn default() -> Self {
-        Self::Switch(false)
-    }
 }
 
 impl PoolingSpec {
@@ -128,6 +120,28 @@ impl SeedsSpec {
     }
 }
 
+/// `risk` as written: a level ε, or `"off"` (a string, so that a sweep can
+/// take both).
+#[derive(Deserialize)]
+#[serde(untagged)]
+pub(super) enum RiskSpec {
+    Level(f64),
+    Named(String),
+}
+
+impl RiskSpec {
+    /// The level (`None`: off), or what to write instead.
+    pub(super) fn level(&self) -> std::result::Result<Option<f64>, String> {
+        match self {
+            RiskSpec::Level(level) => Ok(Some(*level)),
+            RiskSpec::Named(word) if word == "off" => Ok(None),
+            RiskSpec::Named(word) => Err(format!(
+                "risk = \"{word}\": use a probability between 1e-9 and 0.5, or \"off\""
+            )),
+        }
+    }
+}
+
 /// A switch as written: `true` / `false`, or `"on"` / `"off"` (a string, so
 /// that a sweep can take both).
 #[derive(Deserialize)]
@@ -135,12 +149,6 @@ impl SeedsSpec {
 pub(super) enum SwitchSpec {
     Switch(bool),
     Named(String),
-}
-
-impl Default for SwitchSpec {
-    fn default() -> Self {
-        Self::Switch(false)
-    }
 }
 
 impl SwitchSpec {

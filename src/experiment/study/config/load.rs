@@ -4,8 +4,9 @@
 
 use super::file::{ExperimentFile, MountSpec};
 use super::*;
+use crate::mapping::pooling::Pooling;
+use crate::mapping::settings::{OpdfDefaults, SampleGate};
 use crate::mapping::Method;
-use crate::mapping::settings::SampleGate;
 use crate::sim::robot::KinematicChain;
 
 /// A sweep cell's values, by the file they change (experiment, profile,
@@ -218,19 +219,30 @@ impl Mount {
     }
 }
 
-/// The map settings of the file with the overrides applied.
+/// The map settings of the file with the overrides applied; what neither
+/// sets is the uncertainty-aware methods' default ([`OpdfDefaults`]), and
+/// the ray update then maps OctoMap's raw rays.
 fn map_settings(
     file: &ExperimentFile,
     overrides: &Overrides,
 ) -> std::result::Result<MapSettings, String> {
-    let pooling = match overrides.beam_pooling {
-        Some(pooling) => pooling,
-        None => file.beam_pooling.pooling()?,
+    let defaults = OpdfDefaults::MEASURED;
+    let pooling = match (overrides.beam_pooling, &file.beam_pooling) {
+        (Some(pooling), _) => Some(pooling),
+        (None, Some(spec)) => Some(spec.pooling()?),
+        (None, None) => None,
     };
-    let mut map = MapSettings::new(&file.map, file.risk, pooling)?;
-    map.interpolate_beams = match overrides.interpolate_beams {
-        Some(on) => on,
-        None => file.interpolate_beams.on("interpolate_beams")?,
+    let risk = match (overrides.risk, &file.risk) {
+        (Some(risk), _) => risk,
+        (None, Some(spec)) => spec.level()?,
+        (None, None) => defaults.risk,
+    };
+    let mut map = MapSettings::new(&file.map, risk, pooling.unwrap_or(defaults.beam_pooling))?;
+    map.ray_pooling = pooling.unwrap_or(Pooling::Off);
+    map.interpolate_beams = match (overrides.interpolate_beams, &file.interpolate_beams) {
+        (Some(on), _) => on,
+        (None, Some(spec)) => spec.on("interpolate_beams")?,
+        (None, None) => defaults.interpolate_beams,
     };
     map.sample_gate = SampleGate::from_name(&file.sample_gate)?;
     Ok(map)

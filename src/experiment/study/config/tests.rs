@@ -1,6 +1,7 @@
 use super::file::{PoolingSpec, SeedsSpec, SwitchSpec};
 use super::*;
 use crate::mapping::pooling::Pooling;
+use crate::mapping::settings::{MapSettings, OpdfDefaults, SampleGate};
 
 #[test]
 fn grid_offsets_are_sub_voxel_per_seed_and_zero_when_off() {
@@ -35,7 +36,6 @@ fn grid_offsets_are_sub_voxel_per_seed_and_zero_when_off() {
 fn interpolate_beams_reads_a_switch_or_on_and_off() {
     #[derive(Deserialize)]
     struct File {
-        #[serde(default)]
         interpolate_beams: SwitchSpec,
     }
     let read = |text: &str| {
@@ -44,7 +44,6 @@ fn interpolate_beams_reads_a_switch_or_on_and_off() {
             .interpolate_beams
             .on("interpolate_beams")
     };
-    assert_eq!(read(""), Ok(false));
     assert_eq!(read("interpolate_beams = true"), Ok(true));
     assert_eq!(read("interpolate_beams = \"on\""), Ok(true));
     assert_eq!(read("interpolate_beams = \"off\""), Ok(false));
@@ -57,11 +56,9 @@ fn interpolate_beams_reads_a_switch_or_on_and_off() {
 fn beam_pooling_reads_a_switch_or_a_mode() {
     #[derive(Deserialize)]
     struct File {
-        #[serde(default)]
         beam_pooling: PoolingSpec,
     }
     let read = |text: &str| toml::from_str::<File>(text).unwrap().beam_pooling.pooling();
-    assert_eq!(read(""), Ok(Pooling::Off));
     assert_eq!(read("beam_pooling = false"), Ok(Pooling::Off));
     assert_eq!(read("beam_pooling = true"), Ok(Pooling::Windows));
     assert_eq!(read("beam_pooling = \"faces\""), Ok(Pooling::Faces));
@@ -93,6 +90,75 @@ fn beam_pooling_is_a_string_sweep_axis() {
         .map(|cell| Experiment::load_cell(&path, cell).unwrap().map.beam_pooling)
         .collect();
     assert_eq!(modes, [Pooling::Off, Pooling::Faces, Pooling::Windows]);
+}
+
+/// The quickstart with `edit` applied, written to `dir`, and loaded: the
+/// map settings of each of its sweep cells.
+fn quickstart_settings(dir: &Path, edit: impl Fn(String) -> String) -> Vec<MapSettings> {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
+        .unwrap()
+        .replace("\"../", &format!("\"{root}/"))
+        .replace("\"profiles/", &format!("\"{root}/experiments/profiles/"));
+    let path = dir.join("settings.toml");
+    std::fs::write(&path, edit(text)).unwrap();
+    let experiment = Experiment::load(&path).unwrap();
+    experiment
+        .cells()
+        .iter()
+        .map(|cell| Experiment::load_cell(&path, cell).unwrap().map)
+        .collect()
+}
+
+#[test]
+fn left_out_settings_are_the_measured_defaults_and_the_ray_update_stays_octomap() {
+    let dir = tempfile::tempdir().unwrap();
+    let defaults = OpdfDefaults::MEASURED;
+    let [map] = &quickstart_settings(dir.path(), |t| t)[..] else {
+        panic!("one cell")
+    };
+    assert_eq!(map.beam_pooling, defaults.beam_pooling);
+    assert_eq!(map.interpolate_beams, defaults.interpolate_beams);
+    assert_eq!(map.model.risk, defaults.risk);
+    assert_eq!(
+        (map.ray_pooling, map.sample_gate),
+        (Pooling::Off, SampleGate::default())
+    );
+    // Set in the file: every method pools alike; each opt-out holds.
+    let set = |line: &'static str| {
+        move |t: String| t.replacen("seed = 1", &format!("seed = 1\n{line}"), 1)
+    };
+    let [map] = &quickstart_settings(dir.path(), set("beam_pooling = \"faces\""))[..] else {
+        panic!("one cell")
+    };
+    assert_eq!(
+        (map.beam_pooling, map.ray_pooling),
+        (Pooling::Faces, Pooling::Faces)
+    );
+    let [map] = &quickstart_settings(dir.path(), set("beam_pooling = \"off\""))[..] else {
+        panic!("one cell")
+    };
+    assert_eq!(
+        (map.beam_pooling, map.ray_pooling),
+        (Pooling::Off, Pooling::Off)
+    );
+    let [map] = &quickstart_settings(dir.path(), set("interpolate_beams = \"off\""))[..] else {
+        panic!("one cell")
+    };
+    assert!(!map.interpolate_beams);
+    let [map] = &quickstart_settings(dir.path(), set("sample_gate = \"range*6\""))[..] else {
+        panic!("one cell")
+    };
+    assert_eq!(map.sample_gate, SampleGate::from_name("range*6").unwrap());
+    // The risk level is a number or "off", and a sweep may take both.
+    let risks: Vec<Option<f64>> = quickstart_settings(dir.path(), |t| {
+        set("risk = \"off\"")(t)
+            + "\n[[sweep]]\nfield = \"experiment.risk\"\nvalues = [\"off\", 0.5, 0.1]\n"
+    })
+    .iter()
+    .map(|m| m.model.risk)
+    .collect();
+    assert_eq!(risks, [None, Some(0.5), Some(0.1)]);
 }
 
 #[test]
@@ -164,10 +230,9 @@ fn a_minimal_file_takes_the_documented_defaults() {
     assert_eq!(file.description, "");
     assert_eq!(file.seed, 1);
     assert_eq!(file.resolution, 0.01);
-    assert_eq!(file.risk, None);
+    assert!(file.risk.is_none());
     assert!(!file.grid_offset);
-    assert_eq!(file.beam_pooling.pooling(), Ok(Pooling::Off));
-    assert_eq!(file.interpolate_beams.on("interpolate_beams"), Ok(false));
+    assert!(file.beam_pooling.is_none() && file.interpolate_beams.is_none());
     assert!(file.unscented.is_none() && file.seeds.is_none() && file.methods.is_none());
     assert_eq!(file.robot.base_link, "base_link");
     assert_eq!(file.robot.sensor_link, "laser");

@@ -1,6 +1,6 @@
 use super::*;
-use crate::mapping::settings::SampleGate;
 use crate::geometry::Matrix3;
+use crate::mapping::settings::SampleGate;
 use crate::mapping::spherical::{Axis, BeamEnd, GridBuffers, GridLayout};
 
 /// Bin width (rad) of the test grids.
