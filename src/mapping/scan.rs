@@ -274,7 +274,7 @@ pub fn check_sample_budget(beams: f64) -> Result<(), String> {
         return Err(format!(
             "interpolate_beams: {beams:.0} beams per viewpoint would make up to {:.0} surface \
              samples; with samples sigmap handles at most {limit:.0} beams per viewpoint (use \
-             larger sensor steps, or leave interpolate_beams off)",
+             larger sensor steps, or set interpolate_beams = \"off\")",
             beams * SAMPLES_PER_BEAM as f64
         ));
     }

@@ -317,11 +317,11 @@ fn with_mappers(
 /// `resolution`.
 fn checked_scanner(
     file: &ExperimentFile,
+    scanner: Scanner,
     map: &MapSettings,
     builds_grids: bool,
     resolution: f64,
 ) -> std::result::Result<Scanner, String> {
-    let scanner = file.sensor.build()?;
     let viewpoints = file.viewpoints.len();
     if viewpoints == 0 {
         return Err("the experiment has no [[viewpoint]]".into());
@@ -369,7 +369,7 @@ impl Experiment {
                 "resolution = {resolution} must be between 0.001 and 1 m"
             )));
         }
-        let map = map_settings(&file, overrides).map_err(&bad)?;
+        let mut map = map_settings(&file, overrides).map_err(&bad)?;
         let sigma_set = match &file.unscented {
             Some(spec) => SigmaSet::scaled(spec.alpha, spec.beta, spec.kappa)
                 .map_err(|e| bad(format!("[unscented] {e}")))?,
@@ -379,7 +379,16 @@ impl Experiment {
         let seeds = seeds_of(&file, seed).map_err(&bad)?;
         let own = own_methods(&file, overrides).map_err(&bad)?;
         let builds_grids = own.iter().any(|m| m.builds_grids());
-        let scanner = checked_scanner(&file, &map, builds_grids, resolution).map_err(&bad)?;
+        let scanner = file.sensor.build().map_err(&bad)?;
+        // Samples left to the default stay off for a raster too dense to
+        // sample (report.html says so); asked for, such a raster is refused.
+        let samples_defaulted =
+            overrides.interpolate_beams.is_none() && file.interpolate_beams.is_none();
+        if samples_defaulted && check_sample_budget(scanner.directions().len() as f64).is_err() {
+            map.interpolate_beams = false;
+        }
+        let scanner =
+            checked_scanner(&file, scanner, &map, builds_grids, resolution).map_err(&bad)?;
         scene.check_resolution(resolution)?;
         let methods = with_mappers(&own, file.mappers, dir).map_err(&bad)?;
         // With the methods overridden (`sigmap map --method`) the file's

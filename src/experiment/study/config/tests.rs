@@ -162,6 +162,35 @@ fn left_out_settings_are_the_measured_defaults_and_the_ray_update_stays_octomap(
 }
 
 #[test]
+fn samples_left_to_the_default_stay_off_for_a_raster_too_dense_to_sample() {
+    // 1001 x 801 beams a viewpoint: more than the samples' budget
+    // (`check_sample_budget`), so the default leaves them off rather than
+    // refuse the experiment; asked for, they are refused.
+    let dir = tempfile::tempdir().unwrap();
+    let dense = |t: String| {
+        t.replace("horizontal_step_deg = 0.5", "horizontal_step_deg = 0.05")
+            .replace("vertical_step_deg = 0.5", "vertical_step_deg = 0.05")
+    };
+    let [map] = &quickstart_settings(dir.path(), dense)[..] else {
+        panic!("one cell")
+    };
+    assert!(!map.interpolate_beams);
+    assert_eq!(map.beam_pooling, OpdfDefaults::MEASURED.beam_pooling);
+    let path = dir.path().join("asked.toml");
+    let text = std::fs::read_to_string(dir.path().join("settings.toml")).unwrap();
+    std::fs::write(
+        &path,
+        text.replacen("seed = 1", "seed = 1\ninterpolate_beams = \"on\"", 1),
+    )
+    .unwrap();
+    let error = Experiment::load(&path).err().unwrap().to_string();
+    assert!(
+        error.contains("interpolate_beams: 801801 beams per viewpoint"),
+        "{error}"
+    );
+}
+
+#[test]
 fn sweep_cells_and_overrides() {
     let path = Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
