@@ -97,7 +97,29 @@ pub fn render(
         escape(experiment.description())
     );
     let seeds: Vec<String> = experiment.seeds().iter().map(u64::to_string).collect();
-    let (opdf, rays) = experiment.map().describe();
+    let (mut opdf, mut rays) = experiment.map().describe();
+    // The settings above are the file's; a sweep over one of them varies it
+    // cell by cell.
+    let swept: Vec<String> = experiment.cells().first().map_or_else(Vec::new, |cell| {
+        cell.iter()
+            .map(|(field, _)| field.clone())
+            .filter(|f| {
+                ["risk", "beam_pooling", "interpolate_beams", "sample_gate"]
+                    .iter()
+                    .any(|name| f.strip_prefix("experiment.") == Some(name))
+            })
+            .collect()
+    });
+    if !swept.is_empty() {
+        let _ = write!(
+            opdf,
+            " (as the file sets them; swept: {})",
+            swept.join(", ")
+        );
+    }
+    if swept.iter().any(|f| f == "experiment.beam_pooling") {
+        rays.push_str(" (as the file sets it; swept: experiment.beam_pooling)");
+    }
     let methods: Vec<&str> = experiment
         .methods()
         .iter()
