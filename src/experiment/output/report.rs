@@ -53,6 +53,34 @@ fn caption(name: &str) -> String {
     }
 }
 
+/// The map settings in words, the uncertainty-aware maps' and the ray
+/// update's, as the file sets them; a sweep over one of them is named, as it
+/// varies it cell by cell.
+fn map_settings(experiment: &Experiment) -> (String, String) {
+    let (mut opdf, mut rays) = experiment.map().describe();
+    let swept: Vec<String> = experiment.cells().first().map_or_else(Vec::new, |cell| {
+        cell.iter()
+            .map(|(field, _)| field.clone())
+            .filter(|f| {
+                ["risk", "beam_pooling", "interpolate_beams", "sample_gate"]
+                    .iter()
+                    .any(|name| f.strip_prefix("experiment.") == Some(name))
+            })
+            .collect()
+    });
+    if !swept.is_empty() {
+        let _ = write!(
+            opdf,
+            " (as the file sets them; swept: {})",
+            swept.join(", ")
+        );
+    }
+    if swept.iter().any(|f| f == "experiment.beam_pooling") {
+        rays.push_str(" (as the file sets it; swept: experiment.beam_pooling)");
+    }
+    (opdf, rays)
+}
+
 /// Text made safe for HTML.
 fn escape(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
@@ -97,29 +125,7 @@ pub fn render(
         escape(experiment.description())
     );
     let seeds: Vec<String> = experiment.seeds().iter().map(u64::to_string).collect();
-    let (mut opdf, mut rays) = experiment.map().describe();
-    // The settings above are the file's; a sweep over one of them varies it
-    // cell by cell.
-    let swept: Vec<String> = experiment.cells().first().map_or_else(Vec::new, |cell| {
-        cell.iter()
-            .map(|(field, _)| field.clone())
-            .filter(|f| {
-                ["risk", "beam_pooling", "interpolate_beams", "sample_gate"]
-                    .iter()
-                    .any(|name| f.strip_prefix("experiment.") == Some(name))
-            })
-            .collect()
-    });
-    if !swept.is_empty() {
-        let _ = write!(
-            opdf,
-            " (as the file sets them; swept: {})",
-            swept.join(", ")
-        );
-    }
-    if swept.iter().any(|f| f == "experiment.beam_pooling") {
-        rays.push_str(" (as the file sets it; swept: experiment.beam_pooling)");
-    }
+    let (opdf, rays) = map_settings(experiment);
     let methods: Vec<&str> = experiment
         .methods()
         .iter()
@@ -380,6 +386,43 @@ pub fn write_report(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn map_settings_name_the_sweeps_that_vary_them() {
+        let root = env!("CARGO_MANIFEST_DIR");
+        let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
+            .unwrap()
+            .replace("\"../", &format!("\"{root}/"))
+            .replace("\"profiles/", &format!("\"{root}/experiments/profiles/"));
+        let dir = tempfile::tempdir().unwrap();
+        let load = |text: String| {
+            let path = dir.path().join("e.toml");
+            std::fs::write(&path, text).unwrap();
+            Experiment::load(&path).unwrap()
+        };
+        let (opdf, rays) = map_settings(&load(text.clone()));
+        assert_eq!(
+            opdf,
+            "beam pooling windows, surface samples on (gate model), risk level ε = 0.5"
+        );
+        assert_eq!(rays, "beam pooling off");
+        let swept = text.replacen(
+            "seed = 1",
+            "seed = 1\nrisk = \"off\"\nbeam_pooling = \"off\"",
+            1,
+        ) + "[[sweep]]\nfield = \"experiment.risk\"\nvalues = [\"off\", 0.5]\n\
+               [[sweep]]\nfield = \"experiment.beam_pooling\"\nvalues = [\"off\", \"windows\"]\n";
+        let (opdf, rays) = map_settings(&load(swept));
+        assert_eq!(
+            opdf,
+            "beam pooling off, surface samples on (gate model), risk level off (as the file sets \
+             them; swept: experiment.risk, experiment.beam_pooling)"
+        );
+        assert_eq!(
+            rays,
+            "beam pooling off (as the file sets it; swept: experiment.beam_pooling)"
+        );
+    }
 
     #[test]
     fn text_is_escaped() {
