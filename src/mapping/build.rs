@@ -302,7 +302,7 @@ impl<'a> PreparedScan<'a> {
             &self.origin.covariance,
         );
         if view.settings.interpolate_beams {
-            local.add_surface_samples(&view.settings.sample_gate, view.range.angular_sigma);
+            local.add_surface_samples(&view.settings.sample_gate, view.range);
         }
         local
     }

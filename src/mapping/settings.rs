@@ -9,6 +9,7 @@ use super::merge::MergeOptions;
 use super::octree::{logodds, Clamp};
 use super::pooling::Pooling;
 use super::ray_update::UpdateRule;
+use crate::uncertainty::RangeModel;
 
 /// How every map of an experiment is built.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -41,6 +42,11 @@ pub struct SampleGate {
     /// noise, `r σ_a` (the model, `sample_gate = "model"`), or its range
     /// noise alone (`"range"`).
     pub direction_noise: bool,
+    /// Whether a hit's noise along its beam is the sensor's range noise
+    /// `σ(r)` (`"sensor"`: the measurement's own, whatever pooling and the
+    /// pose error make of the beam) or the beam's σ (`"model"`, `"range"`:
+    /// the pooled range's, or the propagated point's along the beam).
+    pub sensor_sigma: bool,
     /// How many times each hit's noise is widened (`"model*k"`): 1 is the
     /// model; more is a tuned gate, kept to compare against.
     pub widening: f64,
@@ -50,6 +56,7 @@ impl Default for SampleGate {
     fn default() -> Self {
         Self {
             direction_noise: true,
+            sensor_sigma: false,
             widening: 1.0,
         }
     }
@@ -57,22 +64,25 @@ impl Default for SampleGate {
 
 impl SampleGate {
     /// The gate an experiment file names: `"model"` (range and direction
-    /// noise), `"range"` (range noise alone), either widened `k` times as
-    /// `"model*k"` or `"range*k"` (1 ≤ k ≤ 100); or what to write instead.
+    /// noise), `"range"` (range noise alone), `"sensor"` (the sensor's range
+    /// noise σ(r) and direction noise), one widened `k` times as `"model*k"`
+    /// (1 ≤ k ≤ 100); or what to write instead.
     pub fn from_name(name: &str) -> Result<Self, String> {
         let bad = || {
             format!(
                 "sample_gate = \"{name}\": use \"model\" (range and direction noise), \"range\" \
-                 (range noise alone), or either widened k times as \"model*k\" (1 <= k <= 100)"
+                 (range noise alone), \"sensor\" (the sensor's own range and direction noise), or \
+                 one widened k times as \"model*k\" (1 <= k <= 100)"
             )
         };
         let (noise, widening) = match name.split_once('*') {
             Some((noise, k)) => (noise.trim(), k.trim().parse::<f64>().map_err(|_| bad())?),
             None => (name, 1.0),
         };
-        let direction_noise = match noise {
-            "model" => true,
-            "range" => false,
+        let (direction_noise, sensor_sigma) = match noise {
+            "model" => (true, false),
+            "range" => (false, false),
+            "sensor" => (true, true),
             _ => return Err(bad()),
         };
         if !(widening.is_finite() && (1.0..=100.0).contains(&widening)) {
@@ -80,19 +90,25 @@ impl SampleGate {
         }
         Ok(Self {
             direction_noise,
+            sensor_sigma,
             widening,
         })
     }
 
-    /// The noise the gate gives a hit at range `r` with range noise `sigma`
-    /// and direction noise `angular_sigma`: (along the beam, sideways).
-    pub fn noise(&self, r: f64, sigma: f64, angular_sigma: f64) -> (f64, f64) {
+    /// The noise the gate gives a hit at range `r` whose beam has σ `sigma`
+    /// along it, for a sensor of noise `range`: (along the beam, sideways).
+    pub fn noise(&self, r: f64, sigma: f64, range: &RangeModel) -> (f64, f64) {
+        let along = if self.sensor_sigma {
+            range.sigma(r)
+        } else {
+            sigma
+        };
         let lateral = if self.direction_noise {
-            r * angular_sigma
+            r * range.angular_sigma
         } else {
             0.0
         };
-        (sigma * self.widening, lateral * self.widening)
+        (along * self.widening, lateral * self.widening)
     }
 }
 
@@ -213,10 +229,13 @@ impl MapSettings {
     /// The settings of the uncertainty-aware maps and of the ray update in
     /// words, as an experiment file writes them (for reports).
     pub fn describe(&self) -> (String, String) {
-        let noise = if self.sample_gate.direction_noise {
-            "model"
-        } else {
-            "range"
+        let noise = match (
+            self.sample_gate.sensor_sigma,
+            self.sample_gate.direction_noise,
+        ) {
+            (true, _) => "sensor",
+            (false, true) => "model",
+            (false, false) => "range",
         };
         let gate = match self.sample_gate.widening {
             1.0 => noise.to_string(),
@@ -302,8 +321,17 @@ mod tests {
         assert!(!range.direction_noise && range.widening == 1.0);
         let widened = gate("range*6").unwrap();
         assert!(!widened.direction_noise && widened.widening == 6.0);
-        assert_eq!(widened.noise(0.5, 0.002, 0.001), (0.012, 0.0));
-        let (along, lateral) = gate("model").unwrap().noise(0.5, 0.002, 0.001);
+        let sensor = RangeModel {
+            sigma0: 0.001,
+            k: 0.002,
+            angular_sigma: 0.001,
+            dropout: 0.0,
+        };
+        assert_eq!(widened.noise(0.5, 0.002, &sensor), (0.012, 0.0));
+        let (along, lateral) = gate("model").unwrap().noise(0.5, 0.003, &sensor);
+        assert_eq!((along, lateral), (0.003, 0.0005));
+        // The sensor's own σ(0.5) = 2 mm, not the beam's 3 mm.
+        let (along, lateral) = gate("sensor").unwrap().noise(0.5, 0.003, &sensor);
         assert_eq!((along, lateral), (0.002, 0.0005));
         for bad in ["modle", "range*0.5", "model*", "model*nan", "range*1000"] {
             let message = gate(bad).unwrap_err();

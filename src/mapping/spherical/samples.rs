@@ -15,6 +15,7 @@ use crate::geometry::Vector3;
 use crate::mapping::chord::{Beam, TAIL};
 use crate::mapping::pooling::hits_on_one_plane;
 use crate::mapping::settings::SampleGate;
+use crate::uncertainty::RangeModel;
 use rayon::prelude::*;
 
 /// Samples per beam spacing along each axis of a block: a sample every
@@ -38,13 +39,13 @@ impl LocalGrid {
 
     /// Whether the 3 × 3 bins around `(a, e)` hold one hit each, all on one
     /// plane (the windows' χ² test at 99%, with each hit's noise as `gate`
-    /// gives it from the beam's σ and the direction noise `angular_sigma`).
+    /// gives it from the beam's σ and the sensor's noise `range`).
     fn window_on_one_plane(
         &self,
         a: usize,
         e: usize,
         gate: &SampleGate,
-        angular_sigma: f64,
+        range: &RangeModel,
     ) -> bool {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
         if a == 0 || e == 0 || a + 1 >= na || e + 1 >= ne {
@@ -55,7 +56,7 @@ impl LocalGrid {
             let Some(beam) = self.single_hit(a + i / 3 - 1, e + i % 3 - 1) else {
                 return false;
             };
-            let (sigma, lateral) = gate.noise(beam.range, beam.sigma, angular_sigma);
+            let (sigma, lateral) = gate.noise(beam.range, beam.sigma, range);
             *slot = (beam.direction, beam.range, sigma, lateral);
         }
         hits_on_one_plane(&hits)
@@ -66,13 +67,13 @@ impl LocalGrid {
     /// holds it), and widens the bins' summaries by the samples' bands, so
     /// that the merge's shortcuts stay exact. A point on an edge between two
     /// blocks is taken once: by the block whose lower edge it is, or by the
-    /// other when that block is not sampled. `angular_sigma` is the beams'
-    /// direction noise (rad). Call it once per grid.
-    pub fn add_surface_samples(&mut self, gate: &SampleGate, angular_sigma: f64) {
+    /// other when that block is not sampled. `range` is the sensor's noise
+    /// model. Call it once per grid.
+    pub fn add_surface_samples(&mut self, gate: &SampleGate, range: &RangeModel) {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
         let mut planar = Vec::new();
         super::per_bin_into(&mut planar, (na, ne), |a, e| {
-            self.window_on_one_plane(a, e, gate, angular_sigma)
+            self.window_on_one_plane(a, e, gate, range)
         });
         let sampled = |a: usize, e: usize| {
             a + 1 < na
