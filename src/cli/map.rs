@@ -79,6 +79,11 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         let scene = experiment.scene();
         scene.check_truth_region(&scene.workspace, resolution, "the whole workspace")?;
     }
+    if let Some(note) =
+        super::samples_note(&experiment).filter(|_| args.method.builds_grids() && !args.run.quiet)
+    {
+        eprintln!("{note}");
+    }
     let bar = progress_bar(experiment.viewpoints().len(), "simulating", args.run.quiet);
     let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))

@@ -405,6 +405,18 @@ fn method_parser() -> impl clap::builder::TypedValueParser<Value = crate::mappin
     clap::builder::PossibleValuesParser::new(names).try_map(|name| name.parse())
 }
 
+/// The line that says why the defaults' surface samples between beams are
+/// off for `experiment`, if they are (docs/math.md §5.7).
+pub(crate) fn samples_note(experiment: &crate::experiment::Experiment) -> Option<String> {
+    experiment.samples_over_budget().map(|beams| {
+        format!(
+            "note: surface samples between beams are off: {beams} beams per viewpoint are more \
+             than sigmap samples (set interpolate_beams = \"off\" to say so, or use larger \
+             sensor steps to have them)"
+        )
+    })
+}
+
 /// `--risk`: a level, or `off` (`None`).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct RiskArg(pub(crate) Option<f64>);

@@ -24,6 +24,9 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         bar.set_length(pending as u64);
         if pending > 0 && !args.run.quiet {
             announce_mappers(&bar, experiment);
+            if let Some(note) = super::samples_note(experiment) {
+                bar.suspend(|| eprintln!("{note}"));
+            }
         }
         if pending < all && !args.run.quiet {
             bar.suspend(|| {

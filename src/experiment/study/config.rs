@@ -128,12 +128,17 @@ pub struct Experiment {
     /// (`grid_offset = true`), so that no face lies on a cell plane by design.
     grid_offset: bool,
     /// How maps are built: OctoMap's hit, miss and clamp (`[map]`), the
-    /// cell model's bounds (`[map]`) and risk level ε (`risk`, off when
-    /// absent; docs/math.md §5.4), beam pooling (`beam_pooling =
-    /// "faces"`, `"windows"` or `true`; §5.5) and surface samples between
-    /// beams (`interpolate_beams = true`; §5.4). Defaults: OctoMap's and the
-    /// paper's values, pooling and samples off.
+    /// cell model's bounds (`[map]`) and risk level ε (`risk`), beam pooling
+    /// (`beam_pooling`; §5.5), surface samples between beams
+    /// (`interpolate_beams`) and their gate (`sample_gate`; §5.4). What the
+    /// file leaves out: OctoMap's and the paper's values for `[map]`, and
+    /// for the other four the uncertainty-aware maps' defaults (docs/math.md
+    /// §5.7), the ray update keeping OctoMap's raw rays.
     map: MapSettings,
+    /// The beams per viewpoint of a raster too dense for the samples that
+    /// the defaults would have added (`None`: no such raster, or samples
+    /// set in the file).
+    samples_over_budget: Option<usize>,
     /// The sigma-point set of the `unscented` and `correlated` methods: the
     /// paper's, or the scaled set of an `[unscented]` table (docs/math.md
     /// §3.2).

@@ -36,13 +36,19 @@ impl Experiment {
     }
 
     /// How maps are built: OctoMap's hit, miss and clamp (`[map]`), the
-    /// cell model's bounds (`[map]`) and risk level ε (`risk`, off when
-    /// absent; docs/math.md §5.4), beam pooling (`beam_pooling =
-    /// "faces"`, `"windows"` or `true`; §5.5) and surface samples between
-    /// beams (`interpolate_beams = true`; §5.4). Defaults: OctoMap's and the
-    /// paper's values, pooling and samples off.
+    /// cell model's bounds (`[map]`) and risk level ε (`risk`; docs/math.md
+    /// §5.4), beam pooling (`beam_pooling`; §5.5), surface samples between
+    /// beams (`interpolate_beams`) and their gate (`sample_gate`; §5.4).
+    /// Defaults: OctoMap's and the paper's values for `[map]`, sigmap's
+    /// (§5.7) for the rest.
     pub fn map(&self) -> &MapSettings {
         &self.map
+    }
+
+    /// Why the defaults' surface samples are off, if they are: the raster's
+    /// beams per viewpoint, too many to sample (`check_sample_budget`).
+    pub fn samples_over_budget(&self) -> Option<usize> {
+        self.samples_over_budget
     }
 
     /// The sigma-point set of the `unscented` and `correlated` methods: the

@@ -384,7 +384,12 @@ impl Experiment {
         // sample (report.html says so); asked for, such a raster is refused.
         let samples_defaulted =
             overrides.interpolate_beams.is_none() && file.interpolate_beams.is_none();
-        if samples_defaulted && check_sample_budget(scanner.directions().len() as f64).is_err() {
+        let beams = scanner.directions().len();
+        let samples_over_budget = (samples_defaulted
+            && map.interpolate_beams
+            && check_sample_budget(beams as f64).is_err())
+        .then_some(beams);
+        if samples_over_budget.is_some() {
             map.interpolate_beams = false;
         }
         let scanner =
@@ -407,6 +412,7 @@ impl Experiment {
             resolution,
             grid_offset: overrides.grid_offset.unwrap_or(file.grid_offset),
             map,
+            samples_over_budget,
             sigma_set,
             seeds,
             methods,

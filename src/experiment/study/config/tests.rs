@@ -176,6 +176,8 @@ fn samples_left_to_the_default_stay_off_for_a_raster_too_dense_to_sample() {
     };
     assert!(!map.interpolate_beams);
     assert_eq!(map.beam_pooling, OpdfDefaults::MEASURED.beam_pooling);
+    let loaded = Experiment::load(&dir.path().join("settings.toml")).unwrap();
+    assert_eq!(loaded.samples_over_budget(), Some(801_801));
     let path = dir.path().join("asked.toml");
     let text = std::fs::read_to_string(dir.path().join("settings.toml")).unwrap();
     std::fs::write(
@@ -188,6 +190,11 @@ fn samples_left_to_the_default_stay_off_for_a_raster_too_dense_to_sample() {
         error.contains("interpolate_beams: 801801 beams per viewpoint"),
         "{error}"
     );
+    let [_] = &quickstart_settings(dir.path(), |t| t)[..] else {
+        panic!("one cell")
+    };
+    let quickstart = Experiment::load(&dir.path().join("settings.toml")).unwrap();
+    assert_eq!(quickstart.samples_over_budget(), None);
 }
 
 #[test]
