@@ -41,3 +41,14 @@ pub use output::scan_files::{
 pub use run::simulate::{simulate, RunTruth, SimulatedRun};
 pub use study::config::{Experiment, Overrides, SweepAxis, SweepValue, Viewpoint};
 pub use study::run_method::RunMethod;
+
+/// The quickstart experiment's text with its relative paths made absolute,
+/// so that a test may write an edited copy anywhere.
+#[cfg(test)]
+pub(crate) fn portable_quickstart() -> String {
+    let root = env!("CARGO_MANIFEST_DIR");
+    std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
+        .expect("experiments/quickstart.toml")
+        .replace("\"../", &format!("\"{root}/"))
+        .replace("\"profiles/", &format!("\"{root}/experiments/profiles/"))
+}

@@ -389,11 +389,7 @@ mod tests {
 
     #[test]
     fn map_settings_name_the_sweeps_that_vary_them() {
-        let root = env!("CARGO_MANIFEST_DIR");
-        let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
-            .unwrap()
-            .replace("\"../", &format!("\"{root}/"))
-            .replace("\"profiles/", &format!("\"{root}/experiments/profiles/"));
+        let text = crate::experiment::portable_quickstart();
         let dir = tempfile::tempdir().unwrap();
         let load = |text: String| {
             let path = dir.path().join("e.toml");

@@ -73,11 +73,7 @@ fn beam_pooling_reads_a_switch_or_a_mode() {
 
 #[test]
 fn beam_pooling_is_a_string_sweep_axis() {
-    let root = env!("CARGO_MANIFEST_DIR");
-    let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
-        .unwrap()
-        .replace("\"../", &format!("\"{root}/"))
-        .replace("\"profiles/", &format!("\"{root}/experiments/profiles/"))
+    let text = crate::experiment::portable_quickstart()
         .replacen("seed = 1", "seed = 1\nbeam_pooling = \"off\"", 1)
         + "\n[[sweep]]\nfield = \"experiment.beam_pooling\"\nvalues = [\"off\", \"faces\", \"windows\"]\n";
     let dir = tempfile::tempdir().unwrap();
@@ -95,11 +91,7 @@ fn beam_pooling_is_a_string_sweep_axis() {
 /// The quickstart with `edit` applied, written to `dir`, and loaded: the
 /// map settings of each of its sweep cells.
 fn quickstart_settings(dir: &Path, edit: impl Fn(String) -> String) -> Vec<MapSettings> {
-    let root = env!("CARGO_MANIFEST_DIR");
-    let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
-        .unwrap()
-        .replace("\"../", &format!("\"{root}/"))
-        .replace("\"profiles/", &format!("\"{root}/experiments/profiles/"));
+    let text = crate::experiment::portable_quickstart();
     let path = dir.join("settings.toml");
     std::fs::write(&path, edit(text)).unwrap();
     let experiment = Experiment::load(&path).unwrap();
@@ -335,16 +327,11 @@ fn the_reference_is_a_listed_method_and_defaults_to_the_ray_update() {
 
 #[test]
 fn an_experiment_file_with_a_seed_range_and_a_reference_loads() {
-    let root = env!("CARGO_MANIFEST_DIR");
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(format!("{root}/experiments/quickstart.toml"))
-        .unwrap()
-        .replace("\"../", &format!("\"{root}/"))
-        .replace("profiles/", &format!("{root}/experiments/profiles/"))
-        .replace(
-            "seeds = [1, 2, 3]",
-            "seeds = \"11..14\"\nreference = \"blind\"",
-        );
+    let text = crate::experiment::portable_quickstart().replace(
+        "seeds = [1, 2, 3]",
+        "seeds = \"11..14\"\nreference = \"blind\"",
+    );
     let path = dir.path().join("e.toml");
     std::fs::write(&path, &text).unwrap();
     let experiment = Experiment::load(&path).unwrap();
