@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{kill_once_journaled, ok, portable_experiment, run_into, sigmap_ok};
+use common::{kill_once_journaled, ok, portable_experiment, run_args, run_into, sigmap_ok};
 use std::path::{Path, PathBuf};
 
 /// The hall experiment at 5 cm with three seeds, its paths absolute.
@@ -24,15 +24,7 @@ fn coarse_hall(dir: &Path) -> PathBuf {
 /// `sigmap run FILE --out OUT -q --threads 1 [extra]`, killed once a seed
 /// is journaled.
 fn kill_after_first_seed(file: &Path, out: &Path, extra: &[&str]) {
-    let mut args = vec![
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-        "--threads",
-        "1",
-    ];
+    let mut args = run_args(file, out, &["--threads", "1"]);
     args.extend_from_slice(extra);
     kill_once_journaled(&args, out, "#end ");
 }

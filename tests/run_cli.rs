@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{portable_quickstart, sigmap, sigmap_ok};
+use common::{ok, portable_quickstart, run_into, sigmap, sigmap_ok};
 use sigmap::experiment::run::runner::{RunRow, TimingRow};
 use sigmap::experiment::study::journal::journal_record;
 
@@ -226,13 +226,7 @@ fn also_paired_adds_the_pairs_against_a_second_method() {
     );
     std::fs::write(&file, text).unwrap();
     let out = dir.path().join("out");
-    sigmap_ok(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    ok(run_into(&file, &out, &[]));
     let text = std::fs::read_to_string(out.join("paired.csv")).unwrap();
     let rows: Vec<Vec<&str>> = text
         .lines()
@@ -619,13 +613,7 @@ fn a_resume_refuses_results_of_other_inputs() {
 
 /// `sigmap run FILE --out OUT -q`, and its `runs.csv` rows.
 fn run_rows(file: &std::path::Path, out: &std::path::Path) -> Vec<RunRow> {
-    sigmap_ok(&[
-        "run",
-        file.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
+    ok(run_into(file, out, &[]));
     csv::Reader::from_path(out.join("runs.csv"))
         .unwrap()
         .deserialize()

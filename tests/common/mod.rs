@@ -116,13 +116,13 @@ pub fn kill_once_journaled(args: &[&str], out: &std::path::Path, needle: &str) {
     assert!(!out.join("summary.csv").exists(), "killed before the end");
 }
 
-/// `sigmap run FILE --out OUT -q EXTRA...`.
+/// The arguments `run FILE --out OUT -q EXTRA...`.
 #[allow(dead_code)] // not every test file runs experiments
-pub fn run_into(
-    file: &std::path::Path,
-    out: &std::path::Path,
-    extra: &[&str],
-) -> std::process::Output {
+pub fn run_args<'a>(
+    file: &'a std::path::Path,
+    out: &'a std::path::Path,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
     let mut args = vec![
         "run",
         file.to_str().unwrap(),
@@ -131,7 +131,17 @@ pub fn run_into(
         "-q",
     ];
     args.extend_from_slice(extra);
-    sigmap(&args)
+    args
+}
+
+/// `sigmap run FILE --out OUT -q EXTRA...`.
+#[allow(dead_code)] // not every test file runs experiments
+pub fn run_into(
+    file: &std::path::Path,
+    out: &std::path::Path,
+    extra: &[&str],
+) -> std::process::Output {
+    sigmap(&run_args(file, out, extra))
 }
 
 /// Asserts that `run` succeeded, showing its stderr if not.
