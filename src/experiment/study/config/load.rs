@@ -221,11 +221,15 @@ impl Mount {
 
 /// The map settings of the file with the overrides applied; what neither
 /// sets is the uncertainty-aware methods' default ([`OpdfDefaults`]), and
-/// the ray update then maps OctoMap's raw rays.
+/// the ray update then maps OctoMap's raw rays. The defaults' surface
+/// samples stay off for a raster of `beams` per viewpoint too dense to
+/// sample, and that count is returned with the settings; asked for there,
+/// the samples are refused later (`checked_scanner`).
 fn map_settings(
     file: &ExperimentFile,
     overrides: &Overrides,
-) -> std::result::Result<MapSettings, String> {
+    beams: usize,
+) -> std::result::Result<(MapSettings, Option<usize>), String> {
     let defaults = OpdfDefaults::MEASURED;
     let pooling = match (overrides.beam_pooling, &file.beam_pooling) {
         (Some(pooling), _) => Some(pooling),
@@ -239,13 +243,18 @@ fn map_settings(
     };
     let mut map = MapSettings::new(&file.map, risk, pooling.unwrap_or(defaults.beam_pooling))?;
     map.ray_pooling = pooling.unwrap_or(Pooling::Off);
+    let mut over_budget = None;
     map.interpolate_beams = match (overrides.interpolate_beams, &file.interpolate_beams) {
         (Some(on), _) => on,
         (None, Some(spec)) => spec.on("interpolate_beams")?,
-        (None, None) => defaults.interpolate_beams,
+        (None, None) if defaults.interpolate_beams => {
+            over_budget = check_sample_budget(beams as f64).err().map(|_| beams);
+            over_budget.is_none()
+        }
+        (None, None) => false,
     };
     map.sample_gate = SampleGate::from_name(&file.sample_gate)?;
-    Ok(map)
+    Ok((map, over_budget))
 }
 
 /// The seeds of `sigmap run`: at most [`MAX_SEEDS`], none twice.
@@ -369,7 +378,9 @@ impl Experiment {
                 "resolution = {resolution} must be between 0.001 and 1 m"
             )));
         }
-        let mut map = map_settings(&file, overrides).map_err(&bad)?;
+        let scanner = file.sensor.build().map_err(&bad)?;
+        let (map, samples_over_budget) =
+            map_settings(&file, overrides, scanner.directions().len()).map_err(&bad)?;
         let sigma_set = match &file.unscented {
             Some(spec) => SigmaSet::scaled(spec.alpha, spec.beta, spec.kappa)
                 .map_err(|e| bad(format!("[unscented] {e}")))?,
@@ -379,19 +390,6 @@ impl Experiment {
         let seeds = seeds_of(&file, seed).map_err(&bad)?;
         let own = own_methods(&file, overrides).map_err(&bad)?;
         let builds_grids = own.iter().any(|m| m.builds_grids());
-        let scanner = file.sensor.build().map_err(&bad)?;
-        // Samples left to the default stay off for a raster too dense to
-        // sample (report.html says so); asked for, such a raster is refused.
-        let samples_defaulted =
-            overrides.interpolate_beams.is_none() && file.interpolate_beams.is_none();
-        let beams = scanner.directions().len();
-        let samples_over_budget = (samples_defaulted
-            && map.interpolate_beams
-            && check_sample_budget(beams as f64).is_err())
-        .then_some(beams);
-        if samples_over_budget.is_some() {
-            map.interpolate_beams = false;
-        }
         let scanner =
             checked_scanner(&file, scanner, &map, builds_grids, resolution).map_err(&bad)?;
         scene.check_resolution(resolution)?;
