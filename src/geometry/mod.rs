@@ -5,8 +5,10 @@
 //! perturbed additively everywhere in sigmap. A transform named `a_from_b` maps
 //! b-coordinates to a-coordinates.
 
+mod eigen;
 mod pose;
 
+pub use eigen::symmetric_eigen;
 pub use pose::{rotation_rpy, rpy_rate_matrix, skew, Pose};
 
 /// 3-vectors, points and matrices of the library (nalgebra, f64).

@@ -331,27 +331,27 @@ fn fit_plane<'a>(hits: impl Iterator<Item = &'a Neighbour> + Clone) -> Option<Pl
         let d = h.point - centroid;
         a + d * d.transpose()
     }) - noise * ((n - 1) as f64 / n as f64);
-    let eig = scatter.symmetric_eigen();
+    let (eigenvalues, eigenvectors) = crate::geometry::symmetric_eigen(&scatter);
     let (mut min, mut second) = (0, 1);
     for i in 0..3 {
-        if eig.eigenvalues[i] < eig.eigenvalues[min] {
+        if eigenvalues[i] < eigenvalues[min] {
             min = i;
         }
     }
     for i in 0..3 {
-        if i != min && (second == min || eig.eigenvalues[i] < eig.eigenvalues[second]) {
+        if i != min && (second == min || eigenvalues[i] < eigenvalues[second]) {
             second = i;
         }
     }
     // A line of points (second-smallest spread ~0) does not fix a plane.
-    if eig.eigenvalues[second] <= 1e-12 {
+    if eigenvalues[second] <= 1e-12 {
         return None;
     }
     let third = 3 - min - second;
-    let axis = |i: usize| (eig.eigenvectors.column(i).into_owned(), eig.eigenvalues[i]);
+    let axis = |i: usize| (eigenvectors.column(i).into_owned(), eigenvalues[i]);
     Some(Plane {
         centroid,
-        normal: eig.eigenvectors.column(min).into_owned(),
+        normal: eigenvectors.column(min).into_owned(),
         in_plane: [axis(second), axis(third)],
     })
 }

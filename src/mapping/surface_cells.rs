@@ -20,8 +20,8 @@ use super::chord::{origin_step, ray_box, Beam, CellModel};
 use super::octree::{Key, Octree, DEPTH};
 use super::spherical::LocalGrid;
 use crate::geometry::{floor, larger, smaller, Vector3};
+use blocks::{Blocks, Cursor};
 use rayon::prelude::*;
-use rustc_hash::FxHashMap;
 
 /// The chance that a surface lies inside the chord `[a, b]` of `beam`, times
 /// the origin step at the chord's middle: one beam's term of `H` (§5.4).
@@ -35,7 +35,7 @@ pub fn chord_surface(model: &CellModel, beam: &Beam, a: f64, b: f64, max_range: 
 /// at `p_hi` the merge's verdict is `p_hi` whatever else is found).
 #[derive(Clone, Debug, Default)]
 pub struct SurfaceCells {
-    cells: FxHashMap<u64, Held>,
+    cells: Blocks,
 }
 
 /// A cell's `min(H, p_hi)` so far, and how far outside a chord a beam's
@@ -119,23 +119,16 @@ impl SurfaceCells {
                     .par_chunks(CHUNK)
                     .zip(sample_inverse.par_chunks(CHUNK)),
             )
-            .fold(FxHashMap::default, |mut cells, (beams, inverse)| {
+            .fold(Blocks::default, |mut cells, (beams, inverse)| {
                 let mut full = [NO_CELL; FULL_SLOTS];
+                let mut cursor = Cursor::default();
                 for (beam, inv) in beams.iter().zip(inverse) {
-                    band_cells(grid, model, geometry, beam, inv, &mut cells, &mut full);
+                    let walk = (&mut cells, &mut cursor, &mut full);
+                    band_cells(grid, model, geometry, beam, inv, walk);
                 }
                 cells
             })
-            .reduce(FxHashMap::default, |a, b| {
-                let (mut a, b) = if a.len() < b.len() { (b, a) } else { (a, b) };
-                for (key, held) in b {
-                    let slot = a.entry(key).or_insert(held);
-                    if held.value > slot.value {
-                        *slot = held;
-                    }
-                }
-                a
-            });
+            .reduce(Blocks::default, Blocks::merge);
         Self { cells }
     }
 
@@ -143,17 +136,18 @@ impl SurfaceCells {
     /// a positive value.
     #[inline]
     pub fn get(&self, key: &Key) -> Option<f64> {
-        self.cells.get(&packed(key)).map(|held| held.value)
+        let held = self.cells.get(key);
+        (held.value > 0.0).then_some(held.value)
     }
 
     /// Number of cells held.
     pub fn len(&self) -> usize {
-        self.cells.len()
+        self.cells.raised().count()
     }
 
     /// Whether no cell is held.
     pub fn is_empty(&self) -> bool {
-        self.cells.is_empty()
+        self.cells.raised().next().is_none()
     }
 }
 
@@ -162,15 +156,14 @@ impl SurfaceCells {
 /// not evaluated again. `full` remembers cells found at `p_hi`, one per
 /// [`full_slot`]; values only rise, so a cell remembered stays at `p_hi`, and
 /// the next beams (which mostly reach the same cells) pass it over without a
-/// look into `cells`.
+/// look into `cells`; `cursor` is the block of `cells` used last.
 fn band_cells(
     grid: &LocalGrid,
     model: &CellModel,
     geometry: &Octree,
     beam: &Beam,
     inverse: &Vector3,
-    cells: &mut FxHashMap<u64, Held>,
-    full: &mut [u64; FULL_SLOTS],
+    (cells, cursor, full): (&mut Blocks, &mut Cursor, &mut [u64; FULL_SLOTS]),
 ) {
     if !beam.range.is_finite() {
         return;
@@ -183,6 +176,8 @@ fn band_cells(
     let resolution = geometry.resolution();
     let half = geometry.node_size(DEPTH) * 0.5;
     let widen = 1e-6 * resolution;
+    // The pieces' boxes are widened by far more than a product's rounding.
+    let per_cell = 1.0 / resolution;
     let pieces = ((end - start) / resolution).ceil().clamp(1.0, 1e6) as usize;
     let point = |t: f64| grid.origin + beam.direction * t;
     // Cells listed by the previous piece (neighbouring pieces share some).
@@ -196,8 +191,8 @@ fn band_cells(
         let range: [[i64; 2]; 3] = std::array::from_fn(|axis| {
             let (lo, hi) = (smaller(pa[axis], pb[axis]), larger(pa[axis], pb[axis]));
             [
-                floor((lo - widen) / resolution),
-                floor((hi + widen) / resolution),
+                floor((lo - widen) * per_cell),
+                floor((hi + widen) * per_cell),
             ]
         });
         // Half-open ranges: the same cells of the tree, fewer instructions
@@ -221,8 +216,8 @@ fn band_cells(
                     if full[slot] == packed {
                         continue;
                     }
-                    let held = cells.get(&packed).copied();
-                    if held.is_some_and(|held| held.value >= model.p_hi) {
+                    let held = cells.cell_mut(&key, cursor);
+                    if held.value >= model.p_hi {
                         full[slot] = packed;
                         continue;
                     }
@@ -231,12 +226,12 @@ fn band_cells(
                         continue;
                     };
                     // Most of the rest only reach it with their band's tail.
-                    if held.is_some_and(|held| held.settled_for(beam, a, b)) {
+                    if held.value > 0.0 && held.settled_for(beam, a, b) {
                         continue;
                     }
                     let h = chord_surface(model, beam, a, b, max_range).min(model.p_hi);
-                    if h > held.map_or(0.0, |held| held.value) {
-                        cells.insert(packed, Held::new(h));
+                    if h > held.value {
+                        *held = Held::new(h);
                         if h >= model.p_hi {
                             full[slot] = packed;
                         }
@@ -259,5 +254,6 @@ fn key_of(cell: [i64; 3]) -> Option<Key> {
     Some(Key(key))
 }
 
+mod blocks;
 #[cfg(test)]
 mod tests;
