@@ -61,7 +61,8 @@ fn closed_form(m: &Matrix3) -> Option<(Vector3, Matrix3)> {
         .unwrap_or(0);
     let u = normal.cross(&Vector3::ith(least, 1.0)).normalize();
     let v = normal.cross(&u);
-    let (muu, muv, mvv) = ((m * u).dot(&u), (m * u).dot(&v), (m * v).dot(&v));
+    let mu = m * u;
+    let (muu, muv, mvv) = (mu.dot(&u), mu.dot(&v), (m * v).dot(&v));
     let (t, c, s) = rotation(muu, muv, mvv);
     let values = Vector3::new((m * normal).dot(&normal), muu - t * muv, mvv + t * muv);
     if values[1].min(values[2]) - values[0] < CLEAR_GAP * size {
@@ -90,15 +91,11 @@ fn rotation(app: f64, apq: f64, aqq: f64) -> (f64, f64, f64) {
     (t, c, t * c)
 }
 
-/// The decomposition by cyclic Jacobi rotations: each zeroes one
-/// off-diagonal entry, and a sweep over the three converges quadratically.
+/// The decomposition of the symmetric `m` by cyclic Jacobi rotations: each
+/// zeroes one off-diagonal entry, and a sweep over the three converges
+/// quadratically.
 fn jacobi(m: &Matrix3) -> (Vector3, Matrix3) {
-    let mut a = [[0.0; 3]; 3];
-    for (i, row) in a.iter_mut().enumerate() {
-        for (j, entry) in row.iter_mut().enumerate() {
-            *entry = m[(i.min(j), i.max(j))];
-        }
-    }
+    let mut a: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]));
     let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     for _ in 0..MAX_SWEEPS {
         let mut rotated = false;
