@@ -5,11 +5,14 @@
 //! best of two maps), so that the machine's drift falls on both; printed:
 //! the median times and the mean of the rounds' ratios (unscented / ray
 //! update) with its 95% t-interval, against the target of at most 2x
-//! (docs/performance.md, "Where the ray update's time goes").
+//! (docs/performance.md, "Where the ray update's time goes"); then, per
+//! resolution, where one unscented map's time goes (its steps summed over
+//! the scans, the least of three maps).
 
 use sigmap::experiment::{simulate, Experiment};
 use sigmap::geometry::Vector3;
-use sigmap::mapping::{build_map, Method};
+use sigmap::mapping::build::{Phase, PhaseTimes};
+use sigmap::mapping::{build_map, build_map_with, BuildExtras, Method};
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Instant;
@@ -84,5 +87,36 @@ fn main() {
             mean - half,
             mean + half,
         );
+        // Where an unscented map's time goes: each step the least of three
+        // maps.
+        let mut least = [f64::INFINITY; 4];
+        for _ in 0..3 {
+            let times = PhaseTimes::default();
+            let extras = BuildExtras {
+                phases: Some(&times),
+                ..BuildExtras::default()
+            };
+            let tree = one.install(|| {
+                build_map_with(
+                    &view,
+                    &run.scans,
+                    extras,
+                    Method::Unscented,
+                    resolution,
+                    &Vector3::zeros(),
+                )
+                .expect("the bench maps")
+            });
+            drop(black_box(tree));
+            for (l, phase) in least.iter_mut().zip(Phase::ALL) {
+                *l = l.min(times.seconds(phase));
+            }
+        }
+        let steps: Vec<String> = Phase::ALL
+            .iter()
+            .zip(least)
+            .map(|(phase, s)| format!("{} {:.1} ms", phase.as_str(), s * 1e3))
+            .collect();
+        println!("          unscented's steps: {}", steps.join(", "));
     }
 }

@@ -25,6 +25,7 @@ use crate::geometry::{Matrix3, Point3, Vector3};
 use crate::uncertainty::{
     Gaussian3, JacobianPropagator, Propagator, UncertainChain, UncertainPoint,
 };
+pub use phases::{Phase, PhaseTimes};
 use std::sync::Mutex;
 
 /// What a map build may be given besides the scans.
@@ -41,6 +42,9 @@ pub struct BuildExtras<'a> {
     /// The most bytes the map's node pools may take ([`Octree::pool_bytes`],
     /// checked after each scan); `None`: [`MAX_MAP_BYTES`].
     pub max_bytes: Option<usize>,
+    /// Where an OPDF map's time goes, summed here step by step (the ray
+    /// update leaves it as it is).
+    pub phases: Option<&'a PhaseTimes>,
 }
 
 /// The most memory a map may take while it is built: 6 GiB. A map that
@@ -381,15 +385,22 @@ fn opdf_map(
     let nominal = shared_nominal_bins(view);
     let spare_grids = Mutex::new(Vec::<GridBuffers>::new());
     let spare_plans = Mutex::new(Vec::<MergePlan>::new());
+    let phases = extras.phases;
     let search = |i: usize| -> std::result::Result<Vec<MergePlan>, String> {
         let scan = PreparedScan::new(view, scans, i, extras, method)?;
         let mut plans = Vec::with_capacity(scan.layout.grids.len());
         for grid in &scan.layout.grids {
             let buffers = pop(&spare_grids).unwrap_or_default();
-            let local = scan.local_grid(view, extras, i, grid, (nominal.as_ref(), buffers), offset);
-            let surfaces = SurfaceCells::new(&local, &options.model, &geometry);
+            let local = timed(phases, Phase::Grid, || {
+                scan.local_grid(view, extras, i, grid, (nominal.as_ref(), buffers), offset)
+            });
+            let surfaces = timed(phases, Phase::Index, || {
+                SurfaceCells::new(&local, &options.model, &geometry)
+            });
             let mut plan = pop(&spare_plans).unwrap_or_default();
-            plan.search(&geometry, &local, &surfaces, &options);
+            timed(phases, Phase::Search, || {
+                plan.search(&geometry, &local, &surfaces, &options);
+            });
             if let Ok(mut spare) = spare_grids.lock() {
                 spare.push(local.into_buffers());
             }
@@ -399,13 +410,21 @@ fn opdf_map(
     };
     insert_scans(&mut tree, scans.len(), &extras, search, |tree, plans| {
         for plan in plans {
-            plan.apply(tree, options.clamp);
+            timed(phases, Phase::Apply, || plan.apply(tree, options.clamp));
             if let Ok(mut spare) = spare_plans.lock() {
                 spare.push(plan);
             }
         }
     })?;
     Ok(tree)
+}
+
+/// `work()`, its time added to `phase` of `phases` if given.
+fn timed<T>(phases: Option<&PhaseTimes>, phase: Phase, work: impl FnOnce() -> T) -> T {
+    match phases {
+        Some(times) => times.time(phase, work),
+        None => work(),
+    }
 }
 
 /// The OPDF map's last steps once every grid is merged: the `correlated`
@@ -476,5 +495,6 @@ fn shared_covariance(
     }
 }
 
+mod phases;
 #[cfg(test)]
 mod tests;

@@ -203,6 +203,7 @@ pub fn map_recorded(
         measured: None,
         done: Some(&done),
         max_bytes: None,
+        phases: None,
     };
     build_map_with(
         &view,

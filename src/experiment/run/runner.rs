@@ -243,6 +243,7 @@ impl<'a> SeedRun<'a> {
                     measured: Some(&self.measured),
                     done: None,
                     max_bytes: None,
+                    phases: None,
                 };
                 let scans = &self.run.scans;
                 build_map_with(

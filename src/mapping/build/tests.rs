@@ -194,6 +194,7 @@ fn maps_draw_pooled_beams_without_the_slide_and_the_nees_keeps_it() {
         measured: Some(&all),
         done: None,
         max_bytes: None,
+        phases: None,
     };
     let prepared = PreparedScan::new(&view, &run.scans, 0, extras, Method::Blind).unwrap();
     let origin = prepared.origin.mean;
@@ -287,6 +288,7 @@ fn the_ray_update_ends_its_rays_at_the_pooled_points() {
         measured: Some(&measured),
         done: None,
         max_bytes: None,
+        phases: None,
     };
     let shared = build_map_with(
         &view,
@@ -359,4 +361,46 @@ fn a_map_that_outgrows_its_memory_budget_stops_with_one_line() {
         );
         assert_eq!(err.lines().count(), 1);
     }
+}
+
+#[test]
+fn an_opdf_map_times_its_phases_and_is_the_same_map() {
+    let experiment = quickstart();
+    let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
+    let view = experiment.mapper_view();
+    let build = |extras| {
+        build_map_with(
+            &view,
+            &run.scans,
+            extras,
+            Method::Unscented,
+            0.05,
+            &Vector3::zeros(),
+        )
+        .unwrap()
+    };
+    let times = PhaseTimes::default();
+    let timed = build(BuildExtras {
+        phases: Some(&times),
+        ..BuildExtras::default()
+    });
+    assert!(timed == build(BuildExtras::default()));
+    for phase in Phase::ALL {
+        assert!(times.seconds(phase) > 0.0, "{}", phase.as_str());
+    }
+    // The ray update has none of these steps.
+    let ray_times = PhaseTimes::default();
+    build_map_with(
+        &view,
+        &run.scans,
+        BuildExtras {
+            phases: Some(&ray_times),
+            ..BuildExtras::default()
+        },
+        Method::RayUpdate,
+        0.05,
+        &Vector3::zeros(),
+    )
+    .unwrap();
+    assert!(Phase::ALL.iter().all(|&p| ray_times.seconds(p) == 0.0));
 }
