@@ -11,12 +11,15 @@
 //! side-by-side run against OctoMap itself is
 //! `bash benches/octomap/compare.sh`.
 
+mod common;
+
+use common::{best_of, map_on, mean_and_half_width, median, octomap_bench};
 use criterion::{criterion_group, criterion_main, Criterion};
 use sigmap::experiment::{simulate, Experiment, Overrides};
 use sigmap::geometry::Vector3;
 use sigmap::mapping::measured::measured_ranges;
 use sigmap::mapping::pooling::Pooling;
-use sigmap::mapping::{build_map, Method};
+use sigmap::mapping::{build_map, BuildExtras, Method};
 use std::hint::black_box;
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -159,29 +162,15 @@ fn two_cores_on_the_octomap_bench(one: &rayon::ThreadPool, two: &rayon::ThreadPo
     const ROUNDS: usize = 12;
     /// Student's t, 97.5% quantile, 11 degrees of freedom.
     const T_11: f64 = 2.201;
-    let experiment = Experiment::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/experiments/octomap_bench.toml"
-    )))
-    .expect("octomap_bench");
-    let run = simulate(&experiment, 1, |_| {}).expect("simulate");
-    let view = experiment.mapper_view();
+    let (experiment, run) = octomap_bench();
     let build = |pool: &rayon::ThreadPool, method| {
-        pool.install(|| {
-            build_map(&view, &run.scans, method, 0.05, &Vector3::zeros()).expect("the bench maps")
-        })
-    };
-    let best_of_three = |pool: &rayon::ThreadPool, method| {
-        (0..3)
-            .map(|_| {
-                let start = Instant::now();
-                let tree = black_box(build(pool, method));
-                let seconds = start.elapsed().as_secs_f64();
-                // Freed after the clock stops: the map's building is timed.
-                drop(tree);
-                seconds
-            })
-            .fold(f64::INFINITY, f64::min)
+        map_on(
+            pool,
+            &experiment,
+            &run,
+            (method, 0.05),
+            BuildExtras::default(),
+        )
     };
     println!(
         "
@@ -193,19 +182,15 @@ one map of the OctoMap benchmark's scans at 5 cm on two cores ({ROUNDS} alternat
             "{method:?}: two cores built a different tree"
         );
         let rounds: Vec<(f64, f64)> = (0..ROUNDS)
-            .map(|_| (best_of_three(one, method), best_of_three(two, method)))
+            .map(|_| {
+                let one_core = best_of(3, || build(one, method));
+                (one_core, best_of(3, || build(two, method)))
+            })
             .collect();
         let ratios: Vec<f64> = rounds.iter().map(|(a, b)| a / b).collect();
-        let median = |mut v: Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            v[v.len() / 2]
-        };
         let one_core = median(rounds.iter().map(|r| r.0).collect());
         let two_cores = median(rounds.iter().map(|r| r.1).collect());
-        let n = ROUNDS as f64;
-        let mean = ratios.iter().sum::<f64>() / n;
-        let sd = (ratios.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
-        let half = T_11 * sd / n.sqrt();
+        let (mean, half) = mean_and_half_width(&ratios, T_11);
         println!(
             "  {:<11} {one_core:6.3} s on one core, {two_cores:6.3} s on two (medians): {mean:5.2}x [{:.2}, {:.2}] (target 1.7x: {})",
             method.as_str(),

@@ -9,13 +9,11 @@
 //! resolution, where one unscented map's time goes (its steps summed over
 //! the scans, the least of three maps).
 
-use sigmap::experiment::{simulate, Experiment};
-use sigmap::geometry::Vector3;
+mod common;
+
+use common::{best_of, map_on, mean_and_half_width, median, octomap_bench};
 use sigmap::mapping::build::{Phase, PhaseTimes};
-use sigmap::mapping::{build_map, build_map_with, BuildExtras, Method};
-use std::hint::black_box;
-use std::path::Path;
-use std::time::Instant;
+use sigmap::mapping::{BuildExtras, Method};
 
 /// Alternating rounds per resolution.
 const ROUNDS: usize = 6;
@@ -25,55 +23,35 @@ const T_5: f64 = 2.571;
 const TARGET: f64 = 2.0;
 
 fn main() {
-    let experiment = Experiment::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/experiments/octomap_bench.toml"
-    )))
-    .expect("octomap_bench");
-    let run = simulate(&experiment, 1, |_| {}).expect("simulate");
-    let view = experiment.mapper_view();
+    let (experiment, run) = octomap_bench();
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .expect("pool");
-    let best_of_two = |method, resolution| {
-        (0..2)
-            .map(|_| {
-                let start = Instant::now();
-                let tree = one.install(|| {
-                    build_map(&view, &run.scans, method, resolution, &Vector3::zeros())
-                        .expect("the bench maps")
-                });
-                let seconds = start.elapsed().as_secs_f64();
-                // Freed after the clock stops: the map's building is timed.
-                drop(black_box(tree));
-                seconds
-            })
-            .fold(f64::INFINITY, f64::min)
+    let map = |method, resolution| {
+        map_on(
+            &one,
+            &experiment,
+            &run,
+            (method, resolution),
+            BuildExtras::default(),
+        )
     };
     println!(
         "the OPDF merge (unscented) against the ray update on the OctoMap benchmark's {beams} beams, one core \
          ({ROUNDS} alternating rounds, each the best of 2 maps; ratio: unscented time / ray update time):"
     );
     for resolution in [0.05, 0.02, 0.01] {
+        let best = |method| best_of(2, || map(method, resolution));
         let rounds: Vec<(f64, f64)> = (0..ROUNDS)
             .map(|_| {
-                let ray = best_of_two(Method::RayUpdate, resolution);
-                (ray, best_of_two(Method::Unscented, resolution))
+                let ray = best(Method::RayUpdate);
+                (ray, best(Method::Unscented))
             })
             .collect();
         let ratios: Vec<f64> = rounds.iter().map(|(ray, opdf)| opdf / ray).collect();
-        let median = |mut v: Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            (v[v.len() / 2 - 1] + v[v.len() / 2]) / 2.0
-        };
-        let ray = median(rounds.iter().map(|r| r.0).collect());
-        let opdf = median(rounds.iter().map(|r| r.1).collect());
-        let n = ROUNDS as f64;
-        let mean = ratios.iter().sum::<f64>() / n;
-        let sd = (ratios.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
-        let half = T_5 * sd / n.sqrt();
+        let (mean, half) = mean_and_half_width(&ratios, T_5);
         let verdict = if mean + half <= TARGET {
             "met"
         } else if mean - half > TARGET {
@@ -82,8 +60,10 @@ fn main() {
             "within the noise"
         };
         println!(
-            "  {:>4} cm: ray update {ray:.3} s, unscented {opdf:.3} s (medians): {mean:.2}x [{:.2}, {:.2}] (target at most {TARGET}x: {verdict})",
+            "  {:>4} cm: ray update {:.3} s, unscented {:.3} s (medians): {mean:.2}x [{:.2}, {:.2}] (target at most {TARGET}x: {verdict})",
             resolution * 100.0,
+            median(rounds.iter().map(|r| r.0).collect()),
+            median(rounds.iter().map(|r| r.1).collect()),
             mean - half,
             mean + half,
         );
@@ -96,18 +76,8 @@ fn main() {
                 phases: Some(&times),
                 ..BuildExtras::default()
             };
-            let tree = one.install(|| {
-                build_map_with(
-                    &view,
-                    &run.scans,
-                    extras,
-                    Method::Unscented,
-                    resolution,
-                    &Vector3::zeros(),
-                )
-                .expect("the bench maps")
-            });
-            drop(black_box(tree));
+            let spec = (Method::Unscented, resolution);
+            drop(map_on(&one, &experiment, &run, spec, extras));
             for (l, phase) in least.iter_mut().zip(Phase::ALL) {
                 *l = l.min(times.seconds(phase));
             }
