@@ -157,12 +157,7 @@ mod tests {
         }
         .build()
         .unwrap();
-        let exact = RangeModel {
-            sigma0: 0.0,
-            k: 0.0,
-            angular_sigma: 0.0,
-            dropout: 0.0,
-        };
+        let exact = RangeModel::NOISELESS;
         let (m, t) = cast_beams(
             &scene,
             &scanner,

@@ -26,6 +26,15 @@ pub struct RangeModel {
 }
 
 impl RangeModel {
+    /// A sensor without noise or dropouts: every range exact, every
+    /// direction the nominal one.
+    pub const NOISELESS: RangeModel = RangeModel {
+        sigma0: 0.0,
+        k: 0.0,
+        angular_sigma: 0.0,
+        dropout: 0.0,
+    };
+
     /// Checks the numbers; errors are phrased for the `[range]` table.
     pub fn check(&self) -> Result<(), String> {
         // Beyond these a "range sensor" says nothing and the statistics

@@ -9,17 +9,8 @@ use crate::mapping::octomap_io::to_ot;
 use crate::mapping::octree::{Clamp, Octree};
 use crate::mapping::opdf::logit;
 use crate::mapping::settings::SampleGate;
-use crate::uncertainty::RangeModel;
-
-/// A sensor without direction noise: the samples' gate then takes each
-/// beam's own σ (`SampleGate::default()`).
-const NO_DIRECTION_NOISE: RangeModel = RangeModel {
-    sigma0: 0.0,
-    k: 0.0,
-    angular_sigma: 0.0,
-    dropout: 0.0,
-};
 use crate::mapping::spherical::spherical;
+use crate::uncertainty::RangeModel;
 use rand::{Rng, SeedableRng};
 
 const FLOOR: f64 = 0.0123;
@@ -562,7 +553,7 @@ fn merge_equals_the_cell_model_with_surface_samples() {
     };
     let plain = plane_grid_with(origin, &h, &v, FLOOR, Some(7), mixed);
     let mut grid = plain.clone();
-    grid.add_surface_samples(&SampleGate::default(), &NO_DIRECTION_NOISE);
+    grid.add_surface_samples(&SampleGate::default(), &RangeModel::NOISELESS);
     assert!(grid.samples().0.len() > 500, "{}", grid.samples().0.len());
     let options = MergeOptions::default();
     let (mut tree, mut without) = (Octree::new(0.01), Octree::new(0.01));
