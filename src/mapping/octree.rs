@@ -5,22 +5,32 @@
 //! unknown; an inner node holds the maximum of its children; eight equal leaf
 //! children are pruned into their parent.
 //!
-//! Storage: a pool of 8-byte nodes for depths 0–15 (`f32` log-odds, `u32`
-//! index of a block of eight children) and a pool of bare `f32` log-odds for
-//! the finest cells (depth 16 never has children), so a finest cell costs 4
-//! bytes; an unknown slot holds NaN. Freed blocks are reused.
+//! Storage, by level (docs/performance.md, memory):
+//! - depths 0–14: 8-byte nodes (`f32` log-odds, `u32` index of a block of
+//!   eight children);
+//! - depth 15, the parents of finest cells: 4 bytes each ([`ParentSlot`]).
+//!   A parent stores no value: it answers the maximum of its known cells,
+//!   which is what an inner node holds. A pruned depth-15 leaf keeps its
+//!   log-odds in a pool of leaf values;
+//! - depth 16, the finest cells: bare `f32` log-odds, 4 bytes each.
+//!
+//! An unknown slot holds NaN. Freed blocks and slots are reused.
 
 use crate::geometry::{floor, Point3};
 
 mod key;
 mod limits;
 mod log_odds;
+mod pool;
 pub use key::Key;
 pub use limits::{check_span, RESOLUTIONS};
 pub use log_odds::{logodds, Clamp, LOG_ODDS_HIT, LOG_ODDS_MISS};
+use pool::{max_known, Parent, ParentSlot, Pool};
 
 /// Depth of the finest level.
 pub const DEPTH: u8 = 16;
+/// Depth of the parents of finest cells.
+const PARENT: u8 = DEPTH - 1;
 pub(crate) const CENTER: i64 = 1 << 15;
 const NO_CHILDREN: u32 = u32::MAX;
 
@@ -55,7 +65,7 @@ pub struct TreeStats {
     pub leaves: usize,
     /// Nodes with children.
     pub inner: usize,
-    /// Bytes held by the node pool (capacity included).
+    /// Bytes held by the node pools (capacity included).
     pub bytes: usize,
 }
 
@@ -63,15 +73,18 @@ pub struct TreeStats {
 #[derive(Clone)]
 pub struct Octree {
     resolution: f64,
-    /// Nodes of depths 0–15; the children of a depth-15 node are in `finest`.
-    nodes: Vec<Node>,
+    /// Nodes of depths 0–14; the children of a depth-14 node are in `parents`.
+    nodes: Pool<Node>,
+    /// Depth-15 nodes; their children are in `finest`.
+    parents: Pool<ParentSlot>,
+    /// The log-odds of depth-15 leaves.
+    leaf_values: Pool<f32>,
     /// The finest cells' log-odds, in blocks of eight.
-    finest: Vec<f32>,
-    free_blocks: Vec<u32>,
-    free_finest_blocks: Vec<u32>,
+    finest: Pool<f32>,
 }
 
-/// A node of the tree for the file formats: its pool index and depth.
+/// A node of the tree for the file formats: its index in its level's pool,
+/// and its depth.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct NodeId {
     index: usize,
@@ -120,10 +133,10 @@ impl Octree {
         );
         Self {
             resolution,
-            nodes: vec![UNKNOWN],
-            finest: Vec::new(),
-            free_blocks: Vec::new(),
-            free_finest_blocks: Vec::new(),
+            nodes: Pool::with(vec![UNKNOWN]),
+            parents: Pool::default(),
+            leaf_values: Pool::default(),
+            finest: Pool::default(),
         }
     }
 
@@ -183,65 +196,151 @@ impl Octree {
         Point3::new(c(0), c(1), c(2))
     }
 
-    /// A block of eight children for a node at `depth`, all `value`.
-    fn alloc_block(&mut self, depth: u8, value: f32) -> u32 {
-        if depth + 1 == DEPTH {
-            take_block(&mut self.finest, &mut self.free_finest_blocks, value)
+    /// The first of the children of the node at `depth` < 16 (an index
+    /// into the next level's pool), if it has them.
+    #[inline]
+    fn first_child(&self, node: usize, depth: u8) -> Option<usize> {
+        if depth == PARENT {
+            match self.parents.items[node].get() {
+                Parent::Cells(first) => Some(first),
+                _ => None,
+            }
         } else {
-            let fill = Node {
-                value,
-                children: NO_CHILDREN,
-            };
-            take_block(&mut self.nodes, &mut self.free_blocks, fill)
+            let block = self.nodes.items[node].children;
+            (block != NO_CHILDREN).then_some(block as usize)
         }
     }
 
-    /// Gives `node` (at `depth` < 16) children: copies of its value (a
-    /// pruned leaf) or unknown.
-    fn expand(&mut self, node: usize, depth: u8) -> u32 {
-        let block = self.alloc_block(depth, self.nodes[node].value);
-        self.nodes[node].children = block;
-        block
+    /// The log-odds of the node at `depth` (NaN: unknown); an inner node
+    /// answers the maximum of its known children.
+    #[inline]
+    fn value_at_depth(&self, node: usize, depth: u8) -> f32 {
+        if depth == DEPTH {
+            self.finest.items[node]
+        } else if depth == PARENT {
+            self.parent_value(self.parents.items[node])
+        } else {
+            self.nodes.items[node].value
+        }
+    }
+
+    #[inline]
+    fn parent_value(&self, slot: ParentSlot) -> f32 {
+        match slot.get() {
+            Parent::Unknown => f32::NAN,
+            Parent::Leaf(index) => self.leaf_values.items[index],
+            Parent::Cells(first) => max_known(&self.finest.items[first..first + 8]),
+        }
+    }
+
+    /// Sets the value of a node without children (NaN: unknown) at `depth`
+    /// < 16. A depth-15 node with children stores no value: left as it is.
+    fn set_leaf_value(&mut self, node: usize, depth: u8, value: f32) {
+        if depth != PARENT {
+            self.nodes.items[node].value = value;
+            return;
+        }
+        match (self.parents.items[node].get(), value.is_nan()) {
+            (Parent::Cells(_), _) | (Parent::Unknown, true) => {}
+            (Parent::Unknown, false) => {
+                self.parents.items[node] = ParentSlot::leaf(self.leaf_values.take_one(value));
+            }
+            (Parent::Leaf(index), false) => self.leaf_values.items[index] = value,
+            (Parent::Leaf(index), true) => {
+                self.leaf_values.free_one(index);
+                self.parents.items[node] = ParentSlot::UNKNOWN;
+            }
+        }
+    }
+
+    /// Gives the childless `node` (at `depth` < 16) eight children, all
+    /// `value`; returns the first.
+    fn give_children(&mut self, node: usize, depth: u8, value: f32) -> usize {
+        if depth == PARENT {
+            if let Parent::Leaf(index) = self.parents.items[node].get() {
+                self.leaf_values.free_one(index);
+            }
+            let first = self.finest.take_block(value);
+            self.parents.items[node] = ParentSlot::cells(first);
+            return first;
+        }
+        let first = if depth + 1 == PARENT {
+            let first = self.parents.take_block(ParentSlot::UNKNOWN);
+            if !value.is_nan() {
+                for child in first..first + 8 {
+                    self.parents.items[child] = ParentSlot::leaf(self.leaf_values.take_one(value));
+                }
+            }
+            first
+        } else {
+            self.nodes.take_block(Node {
+                value,
+                children: NO_CHILDREN,
+            })
+        };
+        self.nodes.items[node].children =
+            u32::try_from(first).expect("fewer than 2^32 nodes above depth 15");
+        first
     }
 
     /// Max of the known children into `node` (at `depth` < 16); prunes
     /// eight equal leaves.
     fn refresh(&mut self, node: usize, depth: u8) {
-        let block = self.nodes[node].children;
+        if depth == PARENT {
+            // The value is the cells' max, read when asked: only prune.
+            let Parent::Cells(first) = self.parents.items[node].get() else {
+                return;
+            };
+            let cells = &self.finest.items[first..first + 8];
+            let value = cells[0];
+            if !value.is_nan() && cells.iter().all(|&v| v == value) {
+                self.finest.free_block(first);
+                self.parents.items[node] = ParentSlot::leaf(self.leaf_values.take_one(value));
+            }
+            return;
+        }
+        let block = self.nodes.items[node].children;
         if block == NO_CHILDREN {
             return;
         }
-        let range = block as usize..block as usize + 8;
-        let finest = depth + 1 == DEPTH;
-        // The children's values; all of them leaves (finest cells always are).
-        let (values, leaves): ([f32; 8], bool) = if finest {
-            (self.finest[range].try_into().expect("a block"), true)
+        let first = block as usize;
+        // The children's values; and whether all of them are leaves.
+        let (values, leaves): ([f32; 8], bool) = if depth + 1 == PARENT {
+            let mut leaves = true;
+            let slots = &self.parents.items[first..first + 8];
+            let values = std::array::from_fn(|i| match slots[i].get() {
+                Parent::Unknown => f32::NAN,
+                Parent::Leaf(index) => self.leaf_values.items[index],
+                Parent::Cells(cells) => {
+                    leaves = false;
+                    max_known(&self.finest.items[cells..cells + 8])
+                }
+            });
+            (values, leaves)
         } else {
-            let children = &self.nodes[range];
+            let children = &self.nodes.items[first..first + 8];
             (
                 std::array::from_fn(|i| children[i].value),
                 children.iter().all(|c| c.children == NO_CHILDREN),
             )
         };
-        let first = values[0];
-        let prunable = leaves && !first.is_nan() && values.iter().all(|&v| v == first);
-        let max = values
-            .into_iter()
-            .filter(|v| !v.is_nan())
-            .fold(f32::NAN, f32::max);
-        if prunable {
-            self.nodes[node] = Node {
-                value: max,
-                children: NO_CHILDREN,
-            };
-            if finest {
-                self.free_finest_blocks.push(block);
-            } else {
-                self.free_blocks.push(block);
-            }
+        let max = max_known(&values);
+        let prunable = leaves && !values[0].is_nan() && values.iter().all(|&v| v == values[0]);
+        self.nodes.items[node].value = max;
+        if !prunable {
             return;
         }
-        self.nodes[node].value = max;
+        self.nodes.items[node].children = NO_CHILDREN;
+        if depth + 1 == PARENT {
+            for child in first..first + 8 {
+                if let Parent::Leaf(index) = self.parents.items[child].get() {
+                    self.leaf_values.free_one(index);
+                }
+            }
+            self.parents.free_block(first);
+        } else {
+            self.nodes.free_block(first);
+        }
     }
 
     /// Walks from the root to the node at `depth` containing `key`, giving
@@ -259,15 +358,17 @@ impl Octree {
         let mut node = 0usize;
         for d in 0..depth {
             path[d as usize] = node;
-            let mut block = self.nodes[node].children;
-            if block == NO_CHILDREN {
-                let current = self.nodes[node].value;
-                if !current.is_nan() && unchanged(current) {
-                    return None;
+            let first = match self.first_child(node, d) {
+                Some(first) => first,
+                None => {
+                    let current = self.value_at_depth(node, d);
+                    if !current.is_nan() && unchanged(current) {
+                        return None;
+                    }
+                    self.give_children(node, d, current)
                 }
-                block = self.expand(node, d);
-            }
-            node = block as usize + key.child_at(d);
+            };
+            node = first + key.child_at(d);
         }
         Some(node)
     }
@@ -280,7 +381,7 @@ impl Octree {
         else {
             return;
         };
-        let leaf = &mut self.finest[node];
+        let leaf = &mut self.finest.items[node];
         let base = if leaf.is_nan() { 0.0 } else { *leaf };
         *leaf = clamp.apply(base + delta);
         for depth in (0..DEPTH).rev() {
@@ -328,27 +429,29 @@ impl Octree {
             let mut depth = common;
             let mut skipped = false;
             while depth < target {
-                let mut block = self.nodes[node].children;
-                if block == NO_CHILDREN {
-                    // A pruned leaf that a finest-cell change leaves as it is
-                    // (clamped) stays pruned, as in `update`.
-                    let current = self.nodes[node].value;
-                    if target == DEPTH as usize
-                        && !current.is_nan()
-                        && clamp.apply(current + delta) == current
-                    {
-                        skipped = true;
-                        break;
+                let first = match self.first_child(node, depth as u8) {
+                    Some(first) => first,
+                    None => {
+                        // A pruned leaf that a finest-cell change leaves as
+                        // it is (clamped) stays pruned, as in `update`.
+                        let current = self.value_at_depth(node, depth as u8);
+                        if target == DEPTH as usize
+                            && !current.is_nan()
+                            && clamp.apply(current + delta) == current
+                        {
+                            skipped = true;
+                            break;
+                        }
+                        self.give_children(node, depth as u8, current)
                     }
-                    block = self.expand(node, depth as u8);
-                }
-                node = block as usize + ((code >> (3 * (DEPTH as usize - 1 - depth))) & 7) as usize;
+                };
+                node = first + ((code >> (3 * (DEPTH as usize - 1 - depth))) & 7) as usize;
                 depth += 1;
                 path[depth] = node;
             }
             if !skipped {
                 if target == DEPTH as usize {
-                    let leaf = &mut self.finest[node];
+                    let leaf = &mut self.finest.items[node];
                     let base = if leaf.is_nan() { 0.0 } else { *leaf };
                     *leaf = clamp.apply(base + delta);
                 } else {
@@ -380,15 +483,15 @@ impl Octree {
     fn add_subtree(&mut self, node: usize, depth: u8, delta: f32, clamp: Clamp) {
         let add = |v: f32| clamp.apply(if v.is_nan() { delta } else { v + delta });
         if depth == DEPTH {
-            self.finest[node] = add(self.finest[node]);
+            self.finest.items[node] = add(self.finest.items[node]);
             return;
         }
-        let block = self.nodes[node].children;
-        if block == NO_CHILDREN {
-            self.nodes[node].value = add(self.nodes[node].value);
+        let Some(first) = self.first_child(node, depth) else {
+            let value = add(self.value_at_depth(node, depth));
+            self.set_leaf_value(node, depth, value);
             return;
-        }
-        for child in block as usize..block as usize + 8 {
+        };
+        for child in first..first + 8 {
             self.add_subtree(child, depth + 1, delta, clamp);
         }
         self.refresh(node, depth);
@@ -399,17 +502,13 @@ impl Octree {
     pub fn query(&self, key: &Key, depth: u8) -> Option<f32> {
         let (mut node, mut d) = (0usize, 0u8);
         while d < depth {
-            let block = self.nodes[node].children;
-            if block == NO_CHILDREN {
+            let Some(first) = self.first_child(node, d) else {
                 break;
-            }
-            node = block as usize + key.child_at(d);
+            };
+            node = first + key.child_at(d);
             d += 1;
         }
-        let v = self.value(NodeId {
-            index: node,
-            depth: d,
-        });
+        let v = self.value_at_depth(node, d);
         (!v.is_nan()).then_some(v)
     }
 
@@ -455,16 +554,18 @@ impl Octree {
     /// Bytes the node pools hold (their capacity): what the tree costs in
     /// memory while it grows.
     pub fn pool_bytes(&self) -> usize {
-        self.nodes.capacity() * std::mem::size_of::<Node>()
-            + self.finest.capacity() * std::mem::size_of::<f32>()
+        self.nodes.slot_bytes()
+            + self.parents.slot_bytes()
+            + self.leaf_values.slot_bytes()
+            + self.finest.slot_bytes()
     }
 
     /// Releases the pools' spare capacity (after the last update).
     pub fn shrink_to_fit(&mut self) {
         self.nodes.shrink_to_fit();
+        self.parents.shrink_to_fit();
+        self.leaf_values.shrink_to_fit();
         self.finest.shrink_to_fit();
-        self.free_blocks.shrink_to_fit();
-        self.free_finest_blocks.shrink_to_fit();
     }
 
     /// Node counts and pool memory.
@@ -489,9 +590,10 @@ impl Octree {
             nodes,
             leaves,
             inner,
-            bytes: self.nodes.capacity() * std::mem::size_of::<Node>()
-                + self.finest.capacity() * std::mem::size_of::<f32>()
-                + (self.free_blocks.capacity() + self.free_finest_blocks.capacity()) * 4,
+            bytes: self.nodes.bytes()
+                + self.parents.bytes()
+                + self.leaf_values.bytes()
+                + self.finest.bytes(),
         }
     }
 
@@ -503,21 +605,20 @@ impl Octree {
 
     fn map_node(&mut self, node: usize, depth: u8, f: &impl Fn(f32) -> f32) {
         if depth == DEPTH {
-            let v = self.finest[node];
+            let v = self.finest.items[node];
             if !v.is_nan() {
-                self.finest[node] = f(v);
+                self.finest.items[node] = f(v);
             }
             return;
         }
-        let block = self.nodes[node].children;
-        if block == NO_CHILDREN {
-            let v = self.nodes[node].value;
+        let Some(first) = self.first_child(node, depth) else {
+            let v = self.value_at_depth(node, depth);
             if !v.is_nan() {
-                self.nodes[node].value = f(v);
+                self.set_leaf_value(node, depth, f(v));
             }
             return;
-        }
-        for child in block as usize..block as usize + 8 {
+        };
+        for child in first..first + 8 {
             self.map_node(child, depth + 1, f);
         }
         self.refresh(node, depth);
@@ -526,11 +627,7 @@ impl Octree {
     /// A node's value (NaN: unknown).
     #[inline]
     fn value(&self, id: NodeId) -> f32 {
-        if id.depth == DEPTH {
-            self.finest[id.index]
-        } else {
-            self.nodes[id.index].value
-        }
+        self.value_at_depth(id.index, id.depth)
     }
 
     /// The first of a node's eight children, if it has them.
@@ -539,9 +636,8 @@ impl Octree {
         if id.depth == DEPTH {
             return None;
         }
-        let block = self.nodes[id.index].children;
-        (block != NO_CHILDREN).then_some(NodeId {
-            index: block as usize,
+        self.first_child(id.index, id.depth).map(|index| NodeId {
+            index,
             depth: id.depth + 1,
         })
     }
@@ -558,12 +654,13 @@ impl Octree {
         (self.value(node), self.children(node))
     }
 
-    /// Sets a node's value (file reading).
+    /// Sets a node's value (file reading). A depth-15 node with children
+    /// keeps answering the maximum of its cells (an inner node's value).
     pub(crate) fn set_raw_value(&mut self, node: NodeId, value: f32) {
         if node.depth == DEPTH {
-            self.finest[node.index] = value;
+            self.finest.items[node.index] = value;
         } else {
-            self.nodes[node.index].value = value;
+            self.set_leaf_value(node.index, node.depth, value);
         }
     }
 
@@ -571,25 +668,14 @@ impl Octree {
     /// reading); returns the first.
     pub(crate) fn raw_expand(&mut self, node: NodeId) -> NodeId {
         assert!(node.depth < DEPTH, "a finest cell has no children");
-        let block = self.alloc_block(node.depth, f32::NAN);
-        self.nodes[node.index].children = block;
+        assert!(
+            self.first_child(node.index, node.depth).is_none(),
+            "a node is given children once"
+        );
         NodeId {
-            index: block as usize,
+            index: self.give_children(node.index, node.depth, f32::NAN),
             depth: node.depth + 1,
         }
-    }
-}
-
-/// A block of eight `fill`s in `pool`: a freed one (from `free`) if any,
-/// else a new one at the end; its first index.
-fn take_block<T: Copy>(pool: &mut Vec<T>, free: &mut Vec<u32>, fill: T) -> u32 {
-    if let Some(block) = free.pop() {
-        pool[block as usize..block as usize + 8].fill(fill);
-        block
-    } else {
-        let block = pool.len() as u32;
-        pool.extend_from_slice(&[fill; 8]);
-        block
     }
 }
 

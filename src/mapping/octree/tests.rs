@@ -283,3 +283,63 @@ fn depth_first_changes_equal_one_by_one() {
         }
     }
 }
+
+#[test]
+fn a_parent_of_finest_cells_costs_four_bytes_and_stores_no_value() {
+    assert_eq!(std::mem::size_of::<ParentSlot>(), 4);
+    assert_eq!(std::mem::size_of::<Node>(), 8);
+    // One depth-14 node's 64 cells, each its own value: 8 parents with cells.
+    let mut tree = Octree::new(0.05);
+    for code in 0..64u64 {
+        tree.update(&Key::from_morton(code), 0.01 * code as f32, Clamp::NONE);
+    }
+    tree.shrink_to_fit();
+    // The root and one block of eight per depth 1–14; one block of parents;
+    // eight blocks of cells; no leaf value.
+    assert_eq!(tree.nodes.items.len(), 1 + 14 * 8);
+    assert_eq!(tree.parents.items.len(), 8);
+    assert_eq!(tree.finest.items.len(), 64);
+    assert!(tree.leaf_values.items.is_empty());
+    assert_eq!(tree.pool_bytes(), (1 + 14 * 8) * 8 + 8 * 4 + 64 * 4);
+    // Each parent answers the max of its cells.
+    for parent in 0..8u64 {
+        let key = Key::from_morton(8 * parent);
+        assert_eq!(tree.query(&key, 15), Some(0.01 * (8 * parent + 7) as f32));
+    }
+    assert_eq!(tree.query(&Key::from_morton(0), 14), Some(0.01 * 63.0));
+}
+
+#[test]
+fn pruning_and_expanding_a_parent_again_and_again_reuses_its_slots() {
+    // Eight equal cells prune into a depth-15 leaf (a leaf value); a miss on
+    // one cell expands it again (the value is freed). Nothing may pile up.
+    let mut tree = Octree::new(0.05);
+    let cells: Vec<u64> = (0..8).collect();
+    for _ in 0..100 {
+        tree.update_sorted(&cells, 5.0, Clamp::OCTOMAP);
+        assert_eq!(tree.leaves().len(), 1, "eight clamped cells prune");
+        tree.update(&Key::from_morton(3), LOG_ODDS_MISS, Clamp::OCTOMAP);
+        assert_eq!(tree.leaves().len(), 8);
+    }
+    assert!(tree.leaf_values.items.len() <= 1, "{:?}", tree.leaf_values);
+    assert!(tree.finest.items.len() <= 8);
+    // The same with a pruned depth-14 node: its eight parents get leaf values.
+    let block: Vec<u64> = (0..64).collect();
+    for _ in 0..100 {
+        tree.update_sorted(&block, 5.0, Clamp::OCTOMAP);
+        assert_eq!(tree.leaves().len(), 1);
+        tree.update(&Key::from_morton(40), LOG_ODDS_MISS, Clamp::OCTOMAP);
+        assert_eq!(tree.leaves().len(), 7 + 8);
+        assert_eq!(
+            tree.query(&Key::from_morton(40), DEPTH),
+            Some(Clamp::OCTOMAP.max + LOG_ODDS_MISS)
+        );
+        assert_eq!(
+            tree.query(&Key::from_morton(0), 15),
+            Some(Clamp::OCTOMAP.max)
+        );
+    }
+    assert!(tree.leaf_values.items.len() <= 8, "{:?}", tree.leaf_values);
+    assert!(tree.parents.items.len() <= 8);
+    assert!(tree.finest.items.len() <= 8);
+}
