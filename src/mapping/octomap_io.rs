@@ -31,30 +31,27 @@ fn count(tree: &Octree) -> usize {
 /// bit `i` says child `i` exists, depth first.
 pub fn to_ot(tree: &Octree) -> Vec<u8> {
     let mut out = header(OT_HEADER, count(tree), tree.resolution()).into_bytes();
-    let (value, _) = tree.raw(tree.root());
+    let (value, children) = tree.raw(tree.root());
     if !value.is_nan() {
-        write_ot_node(tree, tree.root(), &mut out);
+        write_ot_node(tree, value, children, &mut out);
     }
     out
 }
 
-fn write_ot_node(tree: &Octree, node: NodeId, out: &mut Vec<u8>) {
-    let (value, children) = tree.raw(node);
+/// A node (its value and first child) and what lies below it, depth first.
+fn write_ot_node(tree: &Octree, value: f32, children: Option<NodeId>, out: &mut Vec<u8>) {
     out.extend_from_slice(&value.to_le_bytes());
     let Some(block) = children else {
         out.push(0);
         return;
     };
-    let mut mask = 0u8;
-    for i in 0..8 {
-        if !tree.raw(block.offset(i)).0.is_nan() {
-            mask |= 1 << i;
-        }
-    }
+    // Each child's value is read once (a depth-15 node computes its own).
+    let nodes: [(f32, Option<NodeId>); 8] = std::array::from_fn(|i| tree.raw(block.offset(i)));
+    let mask = (0..8).fold(0u8, |mask, i| mask | u8::from(!nodes[i].0.is_nan()) << i);
     out.push(mask);
-    for i in 0..8 {
-        if mask & (1 << i) != 0 {
-            write_ot_node(tree, block.offset(i), out);
+    for (value, children) in nodes {
+        if !value.is_nan() {
+            write_ot_node(tree, value, children, out);
         }
     }
 }

@@ -421,7 +421,8 @@ impl Octree {
         let mut stack = vec![NodeId { index: 0, depth: 0 }];
         while let Some(id) = stack.pop() {
             let children = self.children(id);
-            if self.value(id).is_nan() && children.is_none() {
+            // (A node with children is known: its value is not needed.)
+            if children.is_none() && self.value(id).is_nan() {
                 continue;
             }
             nodes += 1;
