@@ -227,10 +227,17 @@ impl Octree {
 
     #[inline]
     fn parent_value(&self, slot: ParentSlot) -> f32 {
+        self.parent_entry(slot).0
+    }
+
+    /// A depth-15 node's log-odds (NaN: unknown; with cells, their maximum)
+    /// and whether it is a leaf.
+    #[inline]
+    fn parent_entry(&self, slot: ParentSlot) -> (f32, bool) {
         match slot.get() {
-            Parent::Unknown => f32::NAN,
-            Parent::Leaf(index) => self.leaf_values.items[index],
-            Parent::Cells(first) => max_known(&self.finest.items[first..first + 8]),
+            Parent::Unknown => (f32::NAN, true),
+            Parent::Leaf(index) => (self.leaf_values.items[index], true),
+            Parent::Cells(first) => (max_known(&self.finest.items[first..first + 8]), false),
         }
     }
 
@@ -309,13 +316,10 @@ impl Octree {
         let (values, leaves): ([f32; 8], bool) = if depth + 1 == PARENT {
             let mut leaves = true;
             let slots = &self.parents.items[first..first + 8];
-            let values = std::array::from_fn(|i| match slots[i].get() {
-                Parent::Unknown => f32::NAN,
-                Parent::Leaf(index) => self.leaf_values.items[index],
-                Parent::Cells(cells) => {
-                    leaves = false;
-                    max_known(&self.finest.items[cells..cells + 8])
-                }
+            let values = std::array::from_fn(|i| {
+                let (value, leaf) = self.parent_entry(slots[i]);
+                leaves &= leaf;
+                value
             });
             (values, leaves)
         } else {
