@@ -126,3 +126,23 @@ fn a_header_with_a_resolution_that_is_no_number_is_refused() {
         assert!(error.contains("res"), "{res}: {error}");
     }
 }
+
+#[test]
+fn a_depth_15_inner_node_reads_as_the_maximum_of_its_cells() {
+    // One cell: sixteen inner nodes (value, mask) above one finest leaf.
+    let mut tree = Octree::new(0.05);
+    let key = Key([32768, 32768, 32768]);
+    tree.update(&key, LOG_ODDS_HIT, Clamp::OCTOMAP);
+    let bytes = to_ot(&tree);
+    let data = bytes.len() - (16 * 5 + 5);
+    // A file whose depth-15 node says 9.0 (OctoMap writes its children's
+    // maximum there): sigmap keeps the maximum, as its own tree holds it.
+    let mut edited = bytes.clone();
+    let at = data + 15 * 5;
+    assert_eq!(edited[at..at + 4], LOG_ODDS_HIT.to_le_bytes());
+    edited[at..at + 4].copy_from_slice(&9.0f32.to_le_bytes());
+    let back = parse(&edited, Clamp::OCTOMAP).unwrap();
+    assert_eq!(back.query(&key, 15), Some(LOG_ODDS_HIT));
+    assert_eq!(back, tree);
+    assert_eq!(to_ot(&back), bytes);
+}
