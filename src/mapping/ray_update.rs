@@ -154,16 +154,15 @@ struct CellSet {
 /// Rays walked per parallel task.
 const RAYS_PER_TASK: usize = 2048;
 
-/// Bitmap words listed per parallel task.
-const WORDS_PER_TASK: usize = 4096;
-
 /// Largest bounding box (cells) kept as a bitmap: 2^27 bits, 16 MiB.
 const DENSE_LIMIT: usize = 1 << 27;
 
 impl CellSet {
-    /// Empties the set for the box `min..=max`, a bitmap up to
-    /// `dense_limit` cells.
+    /// Empties the set for the box `min..=max` widened to whole 8³ blocks
+    /// of keys (for [`CellSet::list_marked`]), a bitmap up to `dense_limit`
+    /// cells.
     fn reset(&mut self, min: [u16; 3], max: [u16; 3], dense_limit: usize) {
+        let (min, max) = (min.map(|v| v & !7), max.map(|v| v | 7));
         self.min = min;
         self.dims = std::array::from_fn(|a| (max[a] - min[a]) as usize + 1);
         self.row = self.dims[0].next_multiple_of(64);
@@ -192,47 +191,6 @@ impl CellSet {
         };
         if new {
             self.codes.push(key.morton());
-        }
-    }
-
-    /// Dense sets marked by [`mark`] without listing (this one the free
-    /// cells, `occupied` over the same box): lists the codes of both, in no
-    /// order, the free ones that are also occupied left out.
-    fn list_marked(&mut self, occupied: &mut CellSet) {
-        debug_assert!(occupied.dense && occupied.min == self.min && occupied.dims == self.dims);
-        let (words_per_row, ny, min) = (self.row / 64, self.dims[1], self.min);
-        // The cells of word `w`'s set bits: one row, so y and z once a word.
-        let list = |mut bits: u64, w: usize, codes: &mut Vec<u64>| {
-            if bits == 0 {
-                return;
-            }
-            let (row, x) = (w / words_per_row, (w % words_per_row) * 64);
-            let (y, z) = (min[1] + (row % ny) as u16, min[2] + (row / ny) as u16);
-            while bits != 0 {
-                let x = min[0] + (x + bits.trailing_zeros() as usize) as u16;
-                codes.push(Key([x, y, z]).morton());
-                bits &= bits - 1;
-            }
-        };
-        let found: Vec<(Vec<u64>, Vec<u64>)> = self
-            .bits
-            .par_chunks(WORDS_PER_TASK)
-            .zip(occupied.bits.par_chunks(WORDS_PER_TASK))
-            .enumerate()
-            .map(|(task, (free, occupied))| {
-                let (mut free_codes, mut occupied_codes) = (Vec::new(), Vec::new());
-                for (w, (free, occupied)) in free.iter().zip(occupied).enumerate() {
-                    let w = task * WORDS_PER_TASK + w;
-                    let occupied = occupied.load(Relaxed);
-                    list(free.load(Relaxed) & !occupied, w, &mut free_codes);
-                    list(occupied, w, &mut occupied_codes);
-                }
-                (free_codes, occupied_codes)
-            })
-            .collect();
-        for (free, occupied_codes) in found {
-            self.codes.extend(free);
-            occupied.codes.extend(occupied_codes);
         }
     }
 
@@ -506,7 +464,9 @@ impl RayUpdater {
                     walk.mark_rays(walks);
                 });
             }
-            // Occupied wins.
+            // Occupied wins; in depth-first (Morton) order, so that `apply`
+            // walks the tree once (listed here, so that a pipeline lists one
+            // scan's cells while another's are applied).
             self.free.list_marked(&mut self.occupied);
         } else {
             let centre = tree.center(&start, 16);
@@ -528,12 +488,10 @@ impl RayUpdater {
             self.free
                 .codes
                 .retain(|c| !occupied.contains(&Key::from_morton(*c)));
+            // In depth-first (Morton) order, as the bitmaps list them.
+            radsort::sort(&mut self.free.codes);
+            radsort::sort(&mut self.occupied.codes);
         }
-        // In depth-first (Morton) order, so that `apply` walks the tree
-        // once; sorted here, so that a pipeline sorts one scan's cells while
-        // another's are applied.
-        radsort::sort(&mut self.free.codes);
-        radsort::sort(&mut self.occupied.codes);
     }
 
     /// The second half of [`RayUpdater::insert_scan`]: the cells found by
@@ -549,6 +507,7 @@ impl RayUpdater {
 mod dense;
 #[cfg(target_arch = "x86_64")]
 mod lanes;
+mod listing;
 #[cfg(test)]
 mod tests;
 #[cfg(target_arch = "x86_64")]
