@@ -69,14 +69,15 @@ impl CellSet {
     /// The blocks holding a free or an occupied cell, in box order.
     fn blocks(&self, occupied: &CellSet) -> Vec<Block> {
         let words_per_row = self.row / 64;
-        let [nx, ny, nz] = self.dims.map(|d| d / 8);
+        let [_, ny, nz] = self.dims.map(|d| d / 8);
         let (free, taken) = (&self.bits, &occupied.bits);
         (0..ny * nz)
             .into_par_iter()
             .flat_map_iter(|yz| {
                 let (by, bz) = (yz % ny, yz / ny);
                 (0..words_per_row).flat_map(move |w| {
-                    // The union of the block-row's 64 rows in this word.
+                    // The union of the block-row's 64 rows in this word
+                    // (the rows' padding past the box is never marked).
                     let mut any = 0u64;
                     for z in 0..8 {
                         for y in 0..8 {
@@ -87,7 +88,6 @@ impl CellSet {
                     (0..8)
                         .filter(move |byte| any >> (8 * byte) & 0xff != 0)
                         .map(move |byte| w * 8 + byte)
-                        .filter(move |&bx| bx < nx)
                         .map(move |bx| Block {
                             code: block_code(self.min, [bx, by, bz]),
                             at: [bx, by, bz],
