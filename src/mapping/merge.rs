@@ -205,10 +205,15 @@ impl Planner<'_> {
         plan: &mut Plan,
         split: bool,
     ) {
-        let stats = &mut plan.stats;
-        stats.visited += 1;
+        plan.stats.visited += 1;
         let centre = self.tree.center(&key, depth).coords;
         let half = self.tree.node_size(depth) * 0.5;
+        if depth == DEPTH {
+            let corners = corners.expect("finest cells come with their block's corner cache");
+            self.finest(key, &centre, half, corners, plan);
+            return;
+        }
+        let stats = &mut plan.stats;
         // The cube's circumscribed ball: a conservative superset of its bins.
         let Some(bins) = self.grid.ball_bins(&centre, half * 3f64.sqrt()) else {
             return;
@@ -224,37 +229,7 @@ impl Planner<'_> {
             // and F = 1 in every finest cell, so the model gives p_lo.
             let delta = self.options.model.free_log_odds();
             plan.updates.push(Update::Region { key, depth, delta });
-            if depth == DEPTH {
-                stats.fine_updates += 1;
-            } else {
-                stats.coarse_updates += 1;
-            }
-            return;
-        }
-        if depth == DEPTH {
-            let corners = corners.expect("finest cells come with their block's corner cache");
-            let model = &self.options.model;
-            let hit = match self.surfaces.get(&key) {
-                Some(hit) => hit,
-                None => surface_off_bands(self.grid, model, &centre, half, &bins),
-            };
-            let offset = corners.offset(&key);
-            let p = combine(model, hit, |i| {
-                let [x, y, z] = corner_offset(i);
-                corners.free(
-                    self.tree,
-                    self.grid,
-                    model,
-                    [offset[0] + x, offset[1] + y, offset[2] + z],
-                )
-            });
-            if let Some(p) = p {
-                let delta = logit(p) as f32;
-                if delta.abs() >= NEUTRAL {
-                    plan.updates.push(Update::Cell { key, delta });
-                    stats.fine_updates += 1;
-                }
-            }
+            stats.coarse_updates += 1;
             return;
         }
         // The finest cells of a block share their corners.
@@ -271,6 +246,46 @@ impl Planner<'_> {
                 plan.updates.push(Update::Task);
             } else {
                 self.search(k, depth + 1, corners.as_deref_mut(), plan, split);
+            }
+        }
+    }
+}
+
+impl Planner<'_> {
+    /// The finest cell `key`: the cell model's value (§5.4) from `H` (the
+    /// index, or [`surface_off_bands`]) and the free share of its corners.
+    /// No ball test comes first: where the node tests above would find no
+    /// beam, every corner's bin is empty or beyond reach and `H` is 0 (no
+    /// update); where they would certify it free, every corner is free and
+    /// `H` is 0 (`p_lo`), so the evaluation gives what they give.
+    fn finest(
+        &self,
+        key: Key,
+        centre: &Vector3,
+        half: f64,
+        corners: &mut CornerCache,
+        plan: &mut Plan,
+    ) {
+        let model = &self.options.model;
+        let hit = match self.surfaces.get(&key) {
+            Some(hit) => hit,
+            None => surface_off_bands(self.grid, model, centre, half),
+        };
+        let offset = corners.offset(&key);
+        let p = combine(model, hit, |i| {
+            let [x, y, z] = corner_offset(i);
+            corners.free(
+                self.tree,
+                self.grid,
+                model,
+                [offset[0] + x, offset[1] + y, offset[2] + z],
+            )
+        });
+        if let Some(p) = p {
+            let delta = logit(p) as f32;
+            if delta.abs() >= NEUTRAL {
+                plan.updates.push(Update::Cell { key, delta });
+                plan.stats.fine_updates += 1;
             }
         }
     }
@@ -526,7 +541,12 @@ pub fn surface_inside(
 /// surface inside a cell of that ball.
 #[inline]
 fn may_hold(beam: &Beam, bins: &BinBox, max_range: f64) -> bool {
-    let (lo, hi) = bins.range;
+    may_hold_in(beam, bins.range, max_range)
+}
+
+/// [`may_hold`] for the range interval `(lo, hi)`.
+#[inline]
+fn may_hold_in(beam: &Beam, (lo, hi): (f64, f64), max_range: f64) -> bool {
     let margin = 1e-9 * (1.0 + hi);
     beam.range.is_finite()
         && beam.band_start(max_range) <= hi + margin
@@ -536,26 +556,31 @@ fn may_hold(beam: &Beam, bins: &BinBox, max_range: f64) -> bool {
 /// [`surface_inside`] for a cell that no beam's surface band touches (it is
 /// not in the [`SurfaceCells`]): every beam crossing C gives 0, so `H` is 0
 /// unless no centre line crosses C at all and a beam of C's centre bin may
-/// hold the surface (its fallback), which the full search then answers.
+/// hold the surface (its fallback), which the full search then answers. Only
+/// then are the bins of C's ball looked up.
 pub(crate) fn surface_off_bands(
     grid: &LocalGrid,
     model: &CellModel,
     centre: &Vector3,
     half: f64,
-    bins: &BinBox,
 ) -> f64 {
-    let Some((a, e)) = bins.centre else {
+    let radius = half * 3f64.sqrt();
+    let Some((a, e)) = grid.bin_of(centre) else {
         return 0.0;
     };
+    // The ball's range interval, as `ball_bins` gives it.
+    let dist = grid.grid_offset(centre).norm();
+    let range = ((dist - radius).max(0.0), dist + radius);
     let (beams, inverse) = grid.bin_beams(a, e);
-    if !beams.iter().any(|b| may_hold(b, bins, grid.max_range))
+    if !beams.iter().any(|b| may_hold_in(b, range, grid.max_range))
         || inverse
             .iter()
             .any(|inv| ray_box(&grid.origin, inv, centre, half).is_some())
     {
         return 0.0;
     }
-    surface_inside(grid, model, centre, half, bins)
+    grid.ball_bins(centre, radius)
+        .map_or(0.0, |bins| surface_inside(grid, model, centre, half, &bins))
 }
 
 /// The viewpoint's verdict on C from `hit` (H) and the free share of its

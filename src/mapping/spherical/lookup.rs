@@ -176,7 +176,7 @@ impl LocalGrid {
     /// range interval. `None` when the ball misses the field of view.
     #[inline]
     pub fn ball_bins(&self, centre: &Vector3, radius: f64) -> Option<BinBox> {
-        let c = self.scene_from_grid.transpose() * (centre - self.origin);
+        let c = self.grid_offset(centre);
         let fast = self
             .ball_bins_tangent(&c, radius)
             .or_else(|| self.ball_bins_fast(&c, radius));
@@ -280,10 +280,17 @@ impl LocalGrid {
         })
     }
 
+    /// Scene point `p` in the grid's frame, from its origin: what its bin and
+    /// range are read from.
+    #[inline]
+    pub fn grid_offset(&self, p: &Vector3) -> Vector3 {
+        self.scene_from_grid.transpose() * (p - self.origin)
+    }
+
     /// The angular bin holding scene point `p`, if any.
     #[inline]
     pub fn bin_of(&self, p: &Vector3) -> Option<(usize, usize)> {
-        let v = self.scene_from_grid.transpose() * (p - self.origin);
+        let v = self.grid_offset(p);
         direction_bin(
             [&self.azimuth, &self.elevation],
             self.slack,

@@ -95,9 +95,9 @@ fn the_index_gives_every_cell_the_search_value_bit_for_bit() {
                             continue;
                         };
                         let search = surface_inside(&grid, &model, &centre, half, &bins);
-                        let indexed = index.get(&key).unwrap_or_else(|| {
-                            surface_off_bands(&grid, &model, &centre, half, &bins)
-                        });
+                        let indexed = index
+                            .get(&key)
+                            .unwrap_or_else(|| surface_off_bands(&grid, &model, &centre, half));
                         assert_eq!(
                             indexed.min(model.p_hi).to_bits(),
                             search.min(model.p_hi).to_bits(),
