@@ -112,13 +112,13 @@ impl MergePlan {
             task_depth: task_depth(geometry.resolution()),
         };
         let mut skeleton = Plan::default();
-        planner.search(Key([0, 0, 0]), 0, None, &mut skeleton, true);
+        planner.search(Key([0, 0, 0]), 0, None, &mut skeleton, (true, true));
         let tasks: Vec<Plan> = skeleton
             .tasks
             .par_iter()
             .map(|&key| {
                 let mut plan = Plan::default();
-                planner.search(key, planner.task_depth, None, &mut plan, false);
+                planner.search(key, planner.task_depth, None, &mut plan, (false, true));
                 plan
             })
             .collect();
@@ -196,21 +196,23 @@ struct Planner<'a> {
 
 impl Planner<'_> {
     /// Searches the node at `depth` containing `key`; with `split`, leaves
-    /// the nodes at the task depth to tasks.
+    /// the nodes at the task depth to tasks. `bands`: whether some beam's
+    /// surface band may reach the node (false only when its parent's bins
+    /// showed none can).
     fn search(
         &self,
         key: Key,
         depth: u8,
         corners: Option<&mut CornerCache>,
         plan: &mut Plan,
-        split: bool,
+        (split, bands): (bool, bool),
     ) {
         plan.stats.visited += 1;
         let centre = self.tree.center(&key, depth).coords;
         let half = self.tree.node_size(depth) * 0.5;
         if depth == DEPTH {
             let corners = corners.expect("finest cells come with their block's corner cache");
-            self.finest(key, &centre, half, corners, plan);
+            self.finest(key, &centre, half, corners, plan, bands);
             return;
         }
         let stats = &mut plan.stats;
@@ -232,6 +234,9 @@ impl Planner<'_> {
             stats.coarse_updates += 1;
             return;
         }
+        // No band of the ball's bins reaches its range: none reaches a
+        // child's (inside it; twice the rounding margin of `may_hold`).
+        let bands = bands && bins.range.1 + 2e-9 * (1.0 + bins.range.1) >= s.near;
         // The finest cells of a block share their corners.
         let mut own = (depth == DEPTH - CORNER_BLOCK).then(|| CornerCache::new(key));
         let mut corners = own.as_mut().or(corners);
@@ -245,7 +250,7 @@ impl Planner<'_> {
                 plan.tasks.push(k);
                 plan.updates.push(Update::Task);
             } else {
-                self.search(k, depth + 1, corners.as_deref_mut(), plan, split);
+                self.search(k, depth + 1, corners.as_deref_mut(), plan, (split, bands));
             }
         }
     }
@@ -265,11 +270,13 @@ impl Planner<'_> {
         half: f64,
         corners: &mut CornerCache,
         plan: &mut Plan,
+        bands: bool,
     ) {
         let model = &self.options.model;
         let hit = match self.surfaces.get(&key) {
             Some(hit) => hit,
-            None => surface_off_bands(self.grid, model, centre, half),
+            None if bands => surface_off_bands(self.grid, model, centre, half),
+            None => 0.0,
         };
         let offset = corners.offset(&key);
         let p = combine(model, hit, |i| {
