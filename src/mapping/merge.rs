@@ -10,8 +10,7 @@ use super::chord::CellModel;
 use super::octree::{Clamp, Key, Octree, DEPTH};
 use super::opdf::logit;
 use super::spherical::LocalGrid;
-use super::surface_cells::SurfaceCells;
-use crate::geometry::Vector3;
+use super::surface_cells::{SurfaceBlock, SurfaceCells, BLOCK_BITS};
 use cell::corner_offset;
 pub use cell::{cell_occupancy, surface_inside, Cell};
 pub(crate) use cell::{combine, corner_free, surface_off_bands};
@@ -202,7 +201,7 @@ struct Planner<'a> {
     free_log_odds: f32,
 }
 
-impl Planner<'_> {
+impl<'a> Planner<'a> {
     /// Searches the node at `depth` containing `key`; with `split`, leaves
     /// the nodes at the task depth to tasks. `bands`: whether some beam's
     /// surface band may reach the node (false only when its parent's bins
@@ -211,18 +210,18 @@ impl Planner<'_> {
         &self,
         key: Key,
         depth: u8,
-        corners: Option<&mut CornerCache>,
+        corners: Option<&mut CornerCache<'a>>,
         plan: &mut Plan,
         (split, bands): (bool, bool),
     ) {
         plan.stats.visited += 1;
-        let centre = self.tree.center(&key, depth).coords;
-        let half = self.tree.node_size(depth) * 0.5;
         if depth == DEPTH {
             let corners = corners.expect("finest cells come with their block's corner cache");
-            self.finest(key, &centre, half, corners, plan, bands);
+            self.finest(key, corners, plan, bands);
             return;
         }
+        let centre = self.tree.center(&key, depth).coords;
+        let half = self.tree.node_size(depth) * 0.5;
         let stats = &mut plan.stats;
         // The cube's circumscribed ball: a conservative superset of its bins.
         let Some(bins) = self.grid.ball_bins(&centre, half * 3f64.sqrt()) else {
@@ -246,7 +245,8 @@ impl Planner<'_> {
         // child's (inside it; twice the rounding margin of `may_hold`).
         let bands = bands && bins.range.1 + 2e-9 * (1.0 + bins.range.1) >= s.near;
         // The finest cells of a block share their corners.
-        let mut own = (depth == DEPTH - CORNER_BLOCK).then(|| CornerCache::new(key));
+        let mut own = (depth == DEPTH - CORNER_BLOCK)
+            .then(|| CornerCache::new(key, self.surfaces.block(&key)));
         let mut corners = own.as_mut().or(corners);
         let bit = 15 - depth as u32;
         for child in 0..8u16 {
@@ -264,37 +264,27 @@ impl Planner<'_> {
     }
 }
 
-impl Planner<'_> {
+impl<'a> Planner<'a> {
     /// The finest cell `key`: the cell model's value (§5.4) from `H` (the
     /// index, or [`surface_off_bands`]) and the free share of its corners.
     /// No ball test comes first: where the node tests above would find no
     /// beam, every corner's bin is empty or beyond reach and `H` is 0 (no
     /// update); where they would certify it free, every corner is free and
     /// `H` is 0 (`p_lo`), so the evaluation gives what they give.
-    fn finest(
-        &self,
-        key: Key,
-        centre: &Vector3,
-        half: f64,
-        corners: &mut CornerCache,
-        plan: &mut Plan,
-        bands: bool,
-    ) {
+    fn finest(&self, key: Key, corners: &mut CornerCache<'a>, plan: &mut Plan, bands: bool) {
         let model = &self.options.model;
-        let hit = match self.surfaces.get(&key) {
+        let hit = match corners.surfaces.get(&key) {
             Some(hit) => hit,
-            None if bands => surface_off_bands(self.grid, model, centre, half),
+            None if bands => {
+                let centre = self.tree.center(&key, DEPTH).coords;
+                let half = self.tree.node_size(DEPTH) * 0.5;
+                surface_off_bands(self.grid, model, &centre, half)
+            }
             None => 0.0,
         };
-        let offset = corners.offset(&key);
+        let cell = corners.offset(&key);
         let p = combine(model, hit, |i| {
-            let [x, y, z] = corner_offset(i);
-            corners.free(
-                self.tree,
-                self.grid,
-                model,
-                [offset[0] + x, offset[1] + y, offset[2] + z],
-            )
+            corners.free(self.tree, self.grid, model, cell, i)
         });
         if let Some(p) = p {
             // A free cell, the most common verdict, skips the logarithm.
@@ -318,18 +308,36 @@ const CORNER_BLOCK: u8 = 3;
 /// Lattice points a side of a corner block.
 const LATTICE: usize = (1 << CORNER_BLOCK) + 1;
 
-/// The corner values ([`corner_free`]) of the finest cells of one block (a
-/// node [`CORNER_BLOCK`] levels above the finest): its lattice points, each
-/// evaluated at most once, whichever cells share it.
-struct CornerCache {
+/// Corner `i`'s place in a corner cache ([`corner_offset`]) from its
+/// cell's lower corner's.
+const CORNER_SLOTS: [usize; 8] = {
+    let mut slots = [0; 8];
+    let mut i = 0;
+    while i < 8 {
+        slots[i] = (i & 1) + (i >> 1 & 1) * LATTICE + (i >> 2 & 1) * LATTICE * LATTICE;
+        i += 1;
+    }
+    slots
+};
+
+/// What the finest cells of one block (a node [`CORNER_BLOCK`] levels above
+/// the finest) share: their lattice corners' values ([`corner_free`]), each
+/// evaluated at most once whichever cells share it, and the surface index's
+/// cells of the block, found once.
+struct CornerCache<'a> {
     base: Key,
+    surfaces: SurfaceBlock<'a>,
     free: [f64; LATTICE * LATTICE * LATTICE],
 }
 
-impl CornerCache {
-    fn new(base: Key) -> Self {
+// The index's blocks are the corner blocks: one look-up serves a block.
+const _: () = assert!(CORNER_BLOCK as u32 == BLOCK_BITS);
+
+impl<'a> CornerCache<'a> {
+    fn new(base: Key, surfaces: SurfaceBlock<'a>) -> Self {
         Self {
             base,
+            surfaces,
             free: [f64::NAN; LATTICE * LATTICE * LATTICE],
         }
     }
@@ -339,12 +347,27 @@ impl CornerCache {
         std::array::from_fn(|a| key.0[a] - self.base.0[a])
     }
 
-    fn free(&mut self, tree: &Octree, grid: &LocalGrid, model: &CellModel, at: [u16; 3]) -> f64 {
-        let [x, y, z] = at.map(usize::from);
-        let slot = &mut self.free[(z * LATTICE + y) * LATTICE + x];
-        if slot.is_nan() {
-            *slot = corner_free(grid, model, &tree.lattice_point(&self.base, at).coords);
+    /// The value of corner `corner` ([`corner_offset`]) of the cell whose
+    /// lower corner is lattice point `cell`.
+    #[inline]
+    fn free(
+        &mut self,
+        tree: &Octree,
+        grid: &LocalGrid,
+        model: &CellModel,
+        cell: [u16; 3],
+        corner: usize,
+    ) -> f64 {
+        let [x, y, z] = cell.map(usize::from);
+        let slot = (z * LATTICE + y) * LATTICE + x + CORNER_SLOTS[corner];
+        let value = self.free[slot];
+        if !value.is_nan() {
+            return value;
         }
-        *slot
+        let [dx, dy, dz] = corner_offset(corner);
+        let at = [cell[0] + dx, cell[1] + dy, cell[2] + dz];
+        let value = corner_free(grid, model, &tree.lattice_point(&self.base, at).coords);
+        self.free[slot] = value;
+        value
     }
 }

@@ -38,6 +38,23 @@ pub struct SurfaceCells {
     cells: Blocks,
 }
 
+/// The cells of an aligned block of the index ([`SurfaceCells::block`]).
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceBlock<'a>(Option<&'a [Held; blocks::CELLS]>);
+
+/// Finest cells a side of a [`SurfaceBlock`], as a shift.
+pub const BLOCK_BITS: u32 = blocks::SIDE_BITS;
+
+impl SurfaceBlock<'_> {
+    /// [`SurfaceCells::get`] of the finest cell `key` of this block.
+    #[inline]
+    pub fn get(&self, key: &Key) -> Option<f64> {
+        let cells = self.0?;
+        let held = cells[blocks::split(key).1];
+        (held.value > 0.0).then_some(held.value)
+    }
+}
+
 /// A cell's `min(H, p_hi)` so far, and how far outside a chord a beam's
 /// surface must lie (in its σ) for that beam to be unable to raise it.
 ///
@@ -138,6 +155,13 @@ impl SurfaceCells {
     pub fn get(&self, key: &Key) -> Option<f64> {
         let held = self.cells.get(key);
         (held.value > 0.0).then_some(held.value)
+    }
+
+    /// The index's cells in the aligned block of `2^BLOCK_BITS` finest cells
+    /// a side holding `key`: one look-up for all of them.
+    #[inline]
+    pub fn block(&self, key: &Key) -> SurfaceBlock<'_> {
+        SurfaceBlock(self.cells.block(key))
     }
 
     /// Number of cells held.

@@ -14,9 +14,9 @@ use crate::mapping::octree::Key;
 use rustc_hash::FxHashMap;
 
 /// Cells along each edge of a block, as a shift.
-const SIDE_BITS: u32 = 3;
+pub(super) const SIDE_BITS: u32 = 3;
 /// Cells of a block.
-const CELLS: usize = 1 << (3 * SIDE_BITS);
+pub(super) const CELLS: usize = 1 << (3 * SIDE_BITS);
 /// The low bits of a coordinate: the cell's place in its block.
 const LOW: u16 = (1 << SIDE_BITS) - 1;
 
@@ -48,7 +48,7 @@ impl Default for Cursor {
 
 /// The packed key of the block of `key` and the cell's place in it.
 #[inline]
-fn split(key: &Key) -> (u64, usize) {
+pub(super) fn split(key: &Key) -> (u64, usize) {
     let [x, y, z] = key.0.map(u64::from);
     let block = (x >> SIDE_BITS) | (y >> SIDE_BITS) << 13 | (z >> SIDE_BITS) << 26;
     let [lx, ly, lz] = key.0.map(|c| usize::from(c & LOW));
@@ -71,6 +71,14 @@ impl Blocks {
             *cursor = Cursor(block, at);
         }
         &mut self.blocks[cursor.1 as usize][place]
+    }
+
+    /// The cells of the block holding `key` (an 8 × 8 × 8 block aligned on
+    /// multiples of 8), if some beam raised one of them.
+    #[inline]
+    pub(super) fn block(&self, key: &Key) -> Option<&[Held; CELLS]> {
+        let (block, _) = split(key);
+        self.index.get(&block).map(|&at| &*self.blocks[at as usize])
     }
 
     /// The cell `key`'s value ([`EMPTY`] if no beam raised it).
