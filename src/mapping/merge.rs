@@ -47,10 +47,10 @@ pub struct MergeStats {
 const TASK_EDGE: f64 = 0.1;
 
 /// The depth of the task nodes at `resolution`: the deepest whose edge
-/// reaches [`TASK_EDGE`], at least [`CORNER_BLOCK`] levels above the finest
+/// reaches [`TASK_EDGE`], at least [`LATTICE_BLOCK`] levels above the finest
 /// (a task holds whole corner caches).
 fn task_depth(resolution: f64) -> u8 {
-    let mut depth = DEPTH - CORNER_BLOCK;
+    let mut depth = DEPTH - LATTICE_BLOCK;
     while depth > 1 && resolution * f64::from(1u32 << (DEPTH - depth)) < TASK_EDGE {
         depth -= 1;
     }
@@ -117,13 +117,14 @@ impl MergePlan {
             free_log_odds: options.model.free_log_odds(),
         };
         let mut skeleton = Plan::default();
-        planner.search(Key([0, 0, 0]), 0, None, &mut skeleton, (true, true));
+        let mut corners = CornerCache::default();
+        planner.search(Key([0, 0, 0]), 0, &mut corners, &mut skeleton, (true, true));
         let tasks: Vec<Plan> = skeleton
             .tasks
             .par_iter()
-            .map(|&key| {
+            .map_init(CornerCache::default, |corners, &key| {
                 let mut plan = Plan::default();
-                planner.search(key, planner.task_depth, None, &mut plan, (false, true));
+                planner.search(key, planner.task_depth, corners, &mut plan, (false, true));
                 plan
             })
             .collect();
@@ -210,13 +211,12 @@ impl<'a> Planner<'a> {
         &self,
         key: Key,
         depth: u8,
-        corners: Option<&mut CornerCache<'a>>,
+        corners: &mut CornerCache<'a>,
         plan: &mut Plan,
         (split, bands): (bool, bool),
     ) {
         plan.stats.visited += 1;
         if depth == DEPTH {
-            let corners = corners.expect("finest cells come with their block's corner cache");
             self.finest(key, corners, plan, bands);
             return;
         }
@@ -244,10 +244,14 @@ impl<'a> Planner<'a> {
         // No band of the ball's bins reaches its range: none reaches a
         // child's (inside it; twice the rounding margin of `may_hold`).
         let bands = bands && bins.range.1 + 2e-9 * (1.0 + bins.range.1) >= s.near;
-        // The finest cells of a block share their corners.
-        let mut own = (depth == DEPTH - CORNER_BLOCK)
-            .then(|| CornerCache::new(key, self.surfaces.block(&key)));
-        let mut corners = own.as_mut().or(corners);
+        // The finest cells of a lattice block share their corners, those of
+        // an index block their cells of the surface index.
+        if depth == DEPTH - LATTICE_BLOCK {
+            corners.start(key);
+        }
+        if depth == DEPTH - INDEX_BLOCK {
+            corners.surfaces = self.surfaces.block(&key);
+        }
         let bit = 15 - depth as u32;
         for child in 0..8u16 {
             let mut k = key;
@@ -258,7 +262,7 @@ impl<'a> Planner<'a> {
                 plan.tasks.push(k);
                 plan.updates.push(Update::Task);
             } else {
-                self.search(k, depth + 1, corners.as_deref_mut(), plan, (split, bands));
+                self.search(k, depth + 1, corners, plan, (split, bands));
             }
         }
     }
@@ -301,12 +305,19 @@ impl<'a> Planner<'a> {
     }
 }
 
-/// The levels above the finest at which a corner cache starts: its block of
-/// `2^k` finest cells a side shares `(2^k + 1)³` lattice points.
-const CORNER_BLOCK: u8 = 3;
+/// The levels above the finest of a lattice block: its `2^k` finest cells a
+/// side share `(2^k + 1)³` lattice points, each evaluated at most once.
+const LATTICE_BLOCK: u8 = 5;
 
-/// Lattice points a side of a corner block.
-const LATTICE: usize = (1 << CORNER_BLOCK) + 1;
+/// Lattice points a side of a lattice block.
+const LATTICE: usize = (1 << LATTICE_BLOCK) + 1;
+
+/// The levels above the finest of the surface index's blocks
+/// ([`SurfaceCells::block`]): one look-up serves a block's cells.
+const INDEX_BLOCK: u8 = BLOCK_BITS as u8;
+
+// An index block lies inside one lattice block.
+const _: () = assert!(INDEX_BLOCK <= LATTICE_BLOCK);
 
 /// Corner `i`'s place in a corner cache ([`corner_offset`]) from its
 /// cell's lower corner's.
@@ -320,25 +331,44 @@ const CORNER_SLOTS: [usize; 8] = {
     slots
 };
 
-/// What the finest cells of one block (a node [`CORNER_BLOCK`] levels above
-/// the finest) share: their lattice corners' values ([`corner_free`]), each
-/// evaluated at most once whichever cells share it, and the surface index's
-/// cells of the block, found once.
+/// What the finest cells of a block share while the search is in it: the
+/// values ([`corner_free`]) of the lattice points of its lattice block,
+/// each evaluated at most once whichever cells share it, and its index
+/// block's cells of the surface index, found once. One cache serves block
+/// after block: a point's value belongs to the current lattice block only
+/// when its stamp is the block's, so starting a block clears nothing.
 struct CornerCache<'a> {
     base: Key,
     surfaces: SurfaceBlock<'a>,
-    free: [f64; LATTICE * LATTICE * LATTICE],
+    block: u32,
+    /// Per lattice point, `(value, stamp)`.
+    points: Vec<(f64, u32)>,
 }
 
-// The index's blocks are the corner blocks: one look-up serves a block.
-const _: () = assert!(CORNER_BLOCK as u32 == BLOCK_BITS);
-
-impl<'a> CornerCache<'a> {
-    fn new(base: Key, surfaces: SurfaceBlock<'a>) -> Self {
+impl Default for CornerCache<'_> {
+    fn default() -> Self {
         Self {
-            base,
-            surfaces,
-            free: [f64::NAN; LATTICE * LATTICE * LATTICE],
+            base: Key([0, 0, 0]),
+            surfaces: SurfaceBlock::NONE,
+            block: 0,
+            points: Vec::new(),
+        }
+    }
+}
+
+impl CornerCache<'_> {
+    /// Starts the lattice block whose lowest cell is `base`: no value known.
+    fn start(&mut self, base: Key) {
+        self.base = base;
+        self.block = self.block.wrapping_add(1);
+        if self.points.is_empty() {
+            // The first block (the search above the tasks needs none).
+            self.points = vec![(0.0, 0); LATTICE * LATTICE * LATTICE];
+        }
+        if self.block == 0 {
+            // The stamps wrapped (once in 2^32 blocks): clear them.
+            self.points.fill((0.0, 0));
+            self.block = 1;
         }
     }
 
@@ -360,14 +390,14 @@ impl<'a> CornerCache<'a> {
     ) -> f64 {
         let [x, y, z] = cell.map(usize::from);
         let slot = (z * LATTICE + y) * LATTICE + x + CORNER_SLOTS[corner];
-        let value = self.free[slot];
-        if !value.is_nan() {
+        let (value, stamp) = self.points[slot];
+        if stamp == self.block {
             return value;
         }
         let [dx, dy, dz] = corner_offset(corner);
         let at = [cell[0] + dx, cell[1] + dy, cell[2] + dz];
         let value = corner_free(grid, model, &tree.lattice_point(&self.base, at).coords);
-        self.free[slot] = value;
+        self.points[slot] = (value, self.block);
         value
     }
 }

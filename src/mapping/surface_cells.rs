@@ -46,6 +46,9 @@ pub struct SurfaceBlock<'a>(Option<&'a [Held; blocks::CELLS]>);
 pub const BLOCK_BITS: u32 = blocks::SIDE_BITS;
 
 impl SurfaceBlock<'_> {
+    /// No cells.
+    pub const NONE: SurfaceBlock<'static> = SurfaceBlock(None);
+
     /// [`SurfaceCells::get`] of the finest cell `key` of this block.
     #[inline]
     pub fn get(&self, key: &Key) -> Option<f64> {

@@ -190,6 +190,30 @@ fn merge_equals_the_cell_model_evaluated_at_every_finest_cell() {
 }
 
 #[test]
+fn merge_equals_the_cell_model_across_many_lattice_blocks_on_one_thread() {
+    // 5 mm cells: the floor's view spans several of the merge's lattice
+    // blocks (32 cells a side) along x and z, and on one thread one corner
+    // cache serves them all in turn, so a value kept from an earlier block
+    // would show here.
+    let (h, v) = (angles(70.0, 1.0), angles(60.0, 1.0));
+    let grid = floor_grid(Vector3::new(0.0013, 0.0021, 0.4), &h, &v, 0.01);
+    let options = MergeOptions::default();
+    let mut tree = Octree::new(0.005);
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| merge(&mut tree, &grid, &options));
+    let informed = assert_merged_as_the_model(
+        &tree,
+        &grid,
+        &options,
+        cell_centres(0.005, (-70..70, -2..2, -8..72)),
+    );
+    assert!(informed > 20_000, "{informed}");
+}
+
+#[test]
 fn a_face_seven_tenths_of_a_millimetre_into_a_cell_row_is_occupied_everywhere() {
     // The plane z = 0.0207 with 1 cm cells: the row [0.02, 0.03) holds the
     // top 0.7 mm of the solid. Zero pose error, σ = 1 mm along the beam;
