@@ -165,8 +165,8 @@ impl MergeStats {
 enum Update {
     /// Add `delta` to every cell of the node at `depth` containing `key`.
     Region { key: Key, depth: u8, delta: f32 },
-    /// Add `delta` to the finest cell `key`.
-    Cell { key: Key, delta: f32 },
+    /// Add `delta` to the finest cell of Morton code `code`.
+    Cell { code: u64, delta: f32 },
     /// The updates of the next task, in its place.
     Task,
 }
@@ -176,7 +176,7 @@ impl Update {
     fn change(&self) -> (u64, u8, f32) {
         match *self {
             Update::Region { key, depth, delta } => (key.morton(), depth, delta),
-            Update::Cell { key, delta } => (key.morton(), DEPTH, delta),
+            Update::Cell { code, delta } => (code, DEPTH, delta),
             Update::Task => unreachable!("tasks are replaced by their updates"),
         }
     }
@@ -251,11 +251,14 @@ impl<'a> Planner<'a> {
         if depth == DEPTH - 1 {
             // The finest cells, in child order, without a call of their own.
             plan.stats.visited += 8;
+            // A child's Morton code is its parent's with the child index as
+            // its last three bits.
+            let code = key.morton();
             for child in 0..8u16 {
                 let k = Key(std::array::from_fn(|axis| {
                     key.0[axis] | (child >> axis) & 1
                 }));
-                self.finest(k, corners, plan, bands);
+                self.finest(k, code | u64::from(child), corners, plan, bands);
             }
             return;
         }
@@ -276,13 +279,21 @@ impl<'a> Planner<'a> {
 }
 
 impl<'a> Planner<'a> {
-    /// The finest cell `key`: the cell model's value (§5.4) from `H` (the
-    /// index, or [`surface_off_bands`]) and the free share of its corners.
+    /// The finest cell `key` (Morton code `code`): the cell model's value
+    /// (§5.4) from `H` (the index, or [`surface_off_bands`]) and the free
+    /// share of its corners.
     /// No ball test comes first: where the node tests above would find no
     /// beam, every corner's bin is empty or beyond reach and `H` is 0 (no
     /// update); where they would certify it free, every corner is free and
     /// `H` is 0 (`p_lo`), so the evaluation gives what they give.
-    fn finest(&self, key: Key, corners: &mut CornerCache<'a>, plan: &mut Plan, bands: bool) {
+    fn finest(
+        &self,
+        key: Key,
+        code: u64,
+        corners: &mut CornerCache<'a>,
+        plan: &mut Plan,
+        bands: bool,
+    ) {
         let model = &self.options.model;
         let hit = match corners.surfaces.get(&key) {
             Some(hit) => hit,
@@ -305,7 +316,7 @@ impl<'a> Planner<'a> {
                 logit(p) as f32
             };
             if delta.abs() >= NEUTRAL {
-                plan.updates.push(Update::Cell { key, delta });
+                plan.updates.push(Update::Cell { code, delta });
                 plan.stats.fine_updates += 1;
             }
         }

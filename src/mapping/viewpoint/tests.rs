@@ -4,7 +4,7 @@
 use super::*;
 use crate::geometry::Point3;
 use crate::mapping::chord::CellModel;
-use crate::mapping::merge::{cell_occupancy, merge, Cell, MergeOptions};
+use crate::mapping::merge::{cell_occupancy, merge, Cell, MergeOptions, MergeStats};
 use crate::mapping::octomap_io::to_ot;
 use crate::mapping::octree::{Clamp, Octree};
 use crate::mapping::opdf::logit;
@@ -171,21 +171,39 @@ fn free_space_surface_and_occlusion_land_where_they_should() {
     );
 }
 
-#[test]
-fn merge_equals_the_cell_model_evaluated_at_every_finest_cell() {
-    // The coarse shortcuts (skip, whole-cell free) must not change any cell.
+/// Merges the floor seen from 0.4 m into a tree of `resolution` on a pool of
+/// `threads`, and compares the cells `cells` (in cells of that edge) with
+/// the model; returns the merge's counters and the cells informed.
+fn merge_floor_as_the_model(
+    resolution: f64,
+    threads: usize,
+    cells: (
+        std::ops::Range<i32>,
+        std::ops::Range<i32>,
+        std::ops::Range<i32>,
+    ),
+) -> (MergeStats, usize) {
     let (h, v) = (angles(70.0, 1.0), angles(60.0, 1.0));
     let grid = floor_grid(Vector3::new(0.0013, 0.0021, 0.4), &h, &v, 0.01);
     let options = MergeOptions::default();
-    let mut tree = Octree::new(0.02);
-    let stats = merge(&mut tree, &grid, &options);
+    let mut tree = Octree::new(resolution);
+    let stats = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(|| merge(&mut tree, &grid, &options));
+    let centres = cell_centres(resolution, cells);
+    (
+        stats,
+        assert_merged_as_the_model(&tree, &grid, &options, centres),
+    )
+}
+
+#[test]
+fn merge_equals_the_cell_model_evaluated_at_every_finest_cell() {
+    // The coarse shortcuts (skip, whole-cell free) must not change any cell.
+    let (stats, informed) = merge_floor_as_the_model(0.02, 2, (-12..12, -9..9, -3..24));
     assert!(stats.coarse_updates > 0, "{stats:?}");
-    let informed = assert_merged_as_the_model(
-        &tree,
-        &grid,
-        &options,
-        cell_centres(0.02, (-12..12, -9..9, -3..24)),
-    );
     assert!(informed > 1000, "{informed}");
 }
 
@@ -195,21 +213,7 @@ fn merge_equals_the_cell_model_across_many_lattice_blocks_on_one_thread() {
     // blocks (32 cells a side) along x and z, and on one thread one corner
     // cache serves them all in turn, so a value kept from an earlier block
     // would show here.
-    let (h, v) = (angles(70.0, 1.0), angles(60.0, 1.0));
-    let grid = floor_grid(Vector3::new(0.0013, 0.0021, 0.4), &h, &v, 0.01);
-    let options = MergeOptions::default();
-    let mut tree = Octree::new(0.005);
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap()
-        .install(|| merge(&mut tree, &grid, &options));
-    let informed = assert_merged_as_the_model(
-        &tree,
-        &grid,
-        &options,
-        cell_centres(0.005, (-70..70, -2..2, -8..72)),
-    );
+    let (_, informed) = merge_floor_as_the_model(0.005, 1, (-70..70, -2..2, -8..72));
     assert!(informed > 20_000, "{informed}");
 }
 
