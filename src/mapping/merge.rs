@@ -204,9 +204,9 @@ struct Planner<'a> {
 
 impl<'a> Planner<'a> {
     /// Searches the node at `depth` (above the finest) containing `key`;
-    /// with `split`, leaves the nodes at the task depth to tasks. `bands`: whether some beam's
-    /// surface band may reach the node (false only when its parent's bins
-    /// showed none can).
+    /// with `split`, leaves the nodes at the task depth to tasks. `bands`:
+    /// whether some beam's surface band may reach the node (false only when
+    /// an ancestor's bins showed none can).
     fn search(
         &self,
         key: Key,
