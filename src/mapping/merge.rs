@@ -218,7 +218,6 @@ impl<'a> Planner<'a> {
         plan.stats.visited += 1;
         let centre = self.tree.center(&key, depth).coords;
         let half = self.tree.node_size(depth) * 0.5;
-        let stats = &mut plan.stats;
         // The cube's circumscribed ball: a conservative superset of its bins.
         let Some(bins) = self.grid.ball_bins(&centre, half * 3f64.sqrt()) else {
             return;
@@ -234,7 +233,7 @@ impl<'a> Planner<'a> {
             // and F = 1 in every finest cell, so the model gives p_lo.
             let delta = self.free_log_odds;
             plan.updates.push(Update::Region { key, depth, delta });
-            stats.coarse_updates += 1;
+            plan.stats.coarse_updates += 1;
             return;
         }
         // No band of the ball's bins reaches its range: none reaches a
@@ -255,19 +254,13 @@ impl<'a> Planner<'a> {
             // its last three bits.
             let code = key.morton();
             for child in 0..8u16 {
-                let k = Key(std::array::from_fn(|axis| {
-                    key.0[axis] | (child >> axis) & 1
-                }));
+                let k = key.child(depth, child);
                 self.finest(k, code | u64::from(child), corners, plan, bands);
             }
             return;
         }
-        let bit = 15 - depth as u32;
         for child in 0..8u16 {
-            let mut k = key;
-            for (axis, kk) in k.0.iter_mut().enumerate() {
-                *kk |= ((child >> axis) & 1) << bit;
-            }
+            let k = key.child(depth, child);
             if split && depth + 1 == self.task_depth {
                 plan.tasks.push(k);
                 plan.updates.push(Update::Task);
@@ -276,9 +269,7 @@ impl<'a> Planner<'a> {
             }
         }
     }
-}
 
-impl<'a> Planner<'a> {
     /// The finest cell `key` (Morton code `code`): the cell model's value
     /// (§5.4) from `H` (the index, or [`surface_off_bands`]) and the free
     /// share of its corners.

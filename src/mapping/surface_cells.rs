@@ -156,8 +156,7 @@ impl SurfaceCells {
     /// a positive value.
     #[inline]
     pub fn get(&self, key: &Key) -> Option<f64> {
-        let held = self.cells.get(key);
-        (held.value > 0.0).then_some(held.value)
+        self.block(key).get(key)
     }
 
     /// The index's cells in the aligned block of `2^BLOCK_BITS` finest cells

@@ -15,6 +15,16 @@ impl Key {
             | (((self.0[2] >> bit) & 1) << 2)) as usize
     }
 
+    /// The key of child `index` (0–7, as [`Key::child_at`] numbers them) of
+    /// the node at `depth` holding this key, whose lower bits are clear.
+    #[inline]
+    pub fn child(&self, depth: u8, index: u16) -> Key {
+        let bit = 15 - depth as u32;
+        Key(std::array::from_fn(|axis| {
+            self.0[axis] | ((index >> axis) & 1) << bit
+        }))
+    }
+
     /// The Morton code: bits of x, y, z interleaved so that the top three bits
     /// are the root's child index; sorting by it is the tree's depth-first order.
     #[inline]
@@ -59,4 +69,35 @@ fn compact(m: u64) -> u16 {
     x = (x | x >> 4) & 0x00f0_0f00_f00f;
     x = (x | x >> 8) & 0x0000_ff00_00ff;
     ((x | x >> 16) & 0xffff) as u16
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Key;
+
+    #[test]
+    fn a_child_is_numbered_as_child_at_reads_it_and_keeps_its_parents_bits() {
+        // A node at each depth, its lower bits clear: each child's index reads
+        // back, its Morton code is the parent's with the index in the child's
+        // three bits, and the parent's own bits stay.
+        for depth in 0..16u8 {
+            let shift = 16 - depth as u32;
+            let parent = Key([0xb6d3, 0x5a97, 0xe1c5].map(|c: u32| {
+                if shift == 16 {
+                    0
+                } else {
+                    ((c >> shift) << shift) as u16
+                }
+            }));
+            for index in 0..8u16 {
+                let child = parent.child(depth, index);
+                assert_eq!(child.child_at(depth), usize::from(index));
+                let level_bits = 3 * (15 - u32::from(depth));
+                assert_eq!(
+                    child.morton(),
+                    parent.morton() | u64::from(index) << level_bits
+                );
+            }
+        }
+    }
 }

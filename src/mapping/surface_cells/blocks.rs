@@ -81,15 +81,6 @@ impl Blocks {
         self.index.get(&block).map(|&at| &*self.blocks[at as usize])
     }
 
-    /// The cell `key`'s value ([`EMPTY`] if no beam raised it).
-    #[inline]
-    pub(super) fn get(&self, key: &Key) -> Held {
-        let (block, place) = split(key);
-        self.index
-            .get(&block)
-            .map_or(EMPTY, |&at| self.blocks[at as usize][place])
-    }
-
     /// Every cell some beam raised, with its block's key and place, in no
     /// particular order.
     pub(super) fn raised(&self) -> impl Iterator<Item = ((u64, usize), Held)> + '_ {
