@@ -115,6 +115,7 @@ impl MergePlan {
             options,
             task_depth: task_depth(geometry.resolution()),
             free_log_odds: options.model.free_log_odds(),
+            crossed_within: crossed_within(grid, geometry.node_size(DEPTH) * 0.5),
         };
         let mut skeleton = Plan::default();
         let mut corners = CornerCache::default();
@@ -200,6 +201,23 @@ struct Planner<'a> {
     task_depth: u8,
     /// [`CellModel::free_log_odds`] of the options' model.
     free_log_odds: f32,
+    /// [`crossed_within`] of the grid at the finest cells.
+    crossed_within: f64,
+}
+
+/// The range (m) within which every beam of a finest cell's centre bin
+/// surely crosses the cell (cells of half edge `half`).
+///
+/// Two directions in one bin, at most `Δa` apart in azimuth and `Δe` in
+/// elevation, are an angle `d` apart with `sin²(d/2) = sin²(Δe/2) +
+/// cos e₁ cos e₂ sin²(Δa/2) ≤ (Δa² + Δe²)/4` (the haversine formula). So a
+/// beam of the bin of a cell's centre `c` passes within `|c − o| sin d ≤
+/// |c − o| 2 sin(d/2) ≤ |c − o| hypot(Δa, Δe)` of `c`: inside the cube's
+/// inscribed ball while that is below `half`. A millionth is taken off for
+/// the bins' rounding at their edges.
+fn crossed_within(grid: &LocalGrid, half: f64) -> f64 {
+    let angle = grid.azimuth.step.hypot(grid.elevation.step);
+    half * (1.0 - 1e-6) / (angle * (1.0 + 1e-6))
 }
 
 impl<'a> Planner<'a> {
@@ -250,6 +268,10 @@ impl<'a> Planner<'a> {
         if depth == DEPTH - 1 {
             // The finest cells, in child order, without a call of their own.
             plan.stats.visited += 8;
+            // Within `crossed_within` a child's centre bin is empty or its
+            // beams cross the child: either way `surface_off_bands` gives
+            // its first answer, `H = 0`, so its bin need not be looked up.
+            let bands = bands && bins.range.1 >= self.crossed_within;
             // A child's Morton code is its parent's with the child index as
             // its last three bits.
             let code = key.morton();
@@ -272,8 +294,9 @@ impl<'a> Planner<'a> {
 
     /// The finest cell `key` (Morton code `code`): the cell model's value
     /// (§5.4) from `H` (the index, or [`surface_off_bands`]) and the free
-    /// share of its corners.
-    /// No ball test comes first: where the node tests above would find no
+    /// share of its corners; `bands` false where the parent showed that
+    /// [`surface_off_bands`] gives 0 (no band reaches, or the cell is surely
+    /// crossed). No ball test comes first: where the node tests above would find no
     /// beam, every corner's bin is empty or beyond reach and `H` is 0 (no
     /// update); where they would certify it free, every corner is free and
     /// `H` is 0 (`p_lo`), so the evaluation gives what they give.
@@ -408,5 +431,68 @@ impl CornerCache<'_> {
         let value = corner_free(grid, model, &tree.lattice_point(&self.base, at).coords);
         self.points[slot] = (value, self.block);
         value
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Matrix3, Vector3};
+    use crate::mapping::chord::ray_box;
+    use crate::mapping::spherical::Axis;
+    use rand::{Rng, SeedableRng};
+
+    /// Every beam of the bin of a cell's centre crosses the cell when the
+    /// centre lies within `crossed_within`: beams and centres drawn in one
+    /// bin, at its corners (the farthest apart) or anywhere, with cells of
+    /// 5 mm to 5 cm at up to the bound's range.
+    #[test]
+    fn a_beam_of_a_cells_centre_bin_crosses_it_within_crossed_within() {
+        let step = 0.25f64.to_radians();
+        let axis = |count: usize| Axis {
+            start: -(count as f64) * step / 2.0,
+            step,
+            count,
+        };
+        let origin = Vector3::new(0.1, -0.2, 0.3);
+        let grid = LocalGrid::new(
+            origin,
+            Matrix3::identity(),
+            axis(360),
+            axis(240),
+            3.0,
+            &[],
+            &Matrix3::zeros(),
+        );
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let fraction = |rng: &mut rand_chacha::ChaCha8Rng| match rng.random_range(0..3) {
+            0 => 1e-4,
+            1 => 1.0 - 1e-4,
+            _ => rng.random::<f64>(),
+        };
+        let mut checked = 0;
+        for _ in 0..4000 {
+            let (a, e) = (rng.random_range(0..360), rng.random_range(0..240));
+            let direction = |rng: &mut rand_chacha::ChaCha8Rng| {
+                let az = grid.azimuth.start + (a as f64 + fraction(rng)) * step;
+                let el = grid.elevation.start + (e as f64 + fraction(rng)) * step;
+                Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin())
+            };
+            let (beam, towards) = (direction(&mut rng), direction(&mut rng));
+            let half = [0.0025, 0.005, 0.01, 0.025][rng.random_range(0..4)];
+            let range = crossed_within(&grid, half) * rng.random_range(0.5..1.0);
+            let centre = origin + towards * range;
+            if grid.bin_of(&(origin + beam)) != Some((a, e)) || grid.bin_of(&centre) != Some((a, e))
+            {
+                continue;
+            }
+            let inverse = beam.map(|c| 1.0 / c);
+            assert!(
+                ray_box(&origin, &inverse, &centre, half).is_some(),
+                "a beam of bin ({a}, {e}) misses the cell of half edge {half} at {range} m"
+            );
+            checked += 1;
+        }
+        assert!(checked > 3000, "{checked} pairs checked");
     }
 }
