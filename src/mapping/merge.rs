@@ -223,8 +223,8 @@ fn crossed_within(grid: &LocalGrid, half: f64) -> f64 {
 impl<'a> Planner<'a> {
     /// Searches the node at `depth` (above the finest) containing `key`;
     /// with `split`, leaves the nodes at the task depth to tasks. `bands`:
-    /// whether some beam's surface band may reach the node (false only when
-    /// an ancestor's bins showed none can).
+    /// whether the surface band of some beam with a return may reach the
+    /// node (false only when an ancestor's bins showed none can).
     fn search(
         &self,
         key: Key,
@@ -254,9 +254,10 @@ impl<'a> Planner<'a> {
             plan.stats.coarse_updates += 1;
             return;
         }
-        // No band of the ball's bins reaches its range: none reaches a
-        // child's (inside it; twice the rounding margin of `may_hold`).
-        let bands = bands && bins.range.1 + 2e-9 * (1.0 + bins.range.1) >= s.near;
+        // No band of a returning beam of the ball's bins reaches its range:
+        // none reaches a child's (inside it; twice the rounding margin of
+        // `may_hold`).
+        let bands = bands && bins.range.1 + 2e-9 * (1.0 + bins.range.1) >= s.hit_near;
         // The finest cells of a lattice block share their corners, those of
         // an index block their cells of the surface index.
         if depth == DEPTH - LATTICE_BLOCK {

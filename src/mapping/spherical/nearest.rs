@@ -45,6 +45,9 @@ impl LocalGrid {
                 let mut s = BoxSummary::EMPTY;
                 for b in beams {
                     s.near = smaller(s.near, b.band_start(max_range));
+                    if b.range.is_finite() {
+                        s.hit_near = smaller(s.hit_near, b.band_start(max_range));
+                    }
                     s.far = larger(s.far, b.reach(max_range));
                     s.origin = larger(s.origin, TAIL * b.sigma_origin);
                 }

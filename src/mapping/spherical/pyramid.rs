@@ -11,6 +11,11 @@ pub struct BoxSummary {
     /// Smallest range where some beam's surface band starts (before it every
     /// beam says "free"); `+∞` when no beam.
     pub near: f64,
+    /// Smallest range where the surface band of some beam with a return
+    /// starts (samples and pulled surfaces left out); `+∞` when none. A cell
+    /// between rays finds a surface only through such a beam
+    /// (`merge::cell::surface_off_bands`).
+    pub hit_near: f64,
     /// Largest range where some beam still carries information (`r + TAIL σ`,
     /// or the maximum range for a no-return beam); `−∞` when no beam.
     pub far: f64,
@@ -26,6 +31,7 @@ impl BoxSummary {
     /// The summary of no bins.
     pub(super) const EMPTY: BoxSummary = BoxSummary {
         near: f64::INFINITY,
+        hit_near: f64::INFINITY,
         far: f64::NEG_INFINITY,
         origin: 0.0,
         filled: 0,
@@ -36,6 +42,7 @@ impl BoxSummary {
     #[inline]
     pub(super) fn add(&mut self, other: &BoxSummary) {
         self.near = smaller(self.near, other.near);
+        self.hit_near = smaller(self.hit_near, other.hit_near);
         self.far = larger(self.far, other.far);
         self.origin = larger(self.origin, other.origin);
         self.filled += other.filled;

@@ -99,6 +99,7 @@ impl LocalGrid {
             let cell = &mut level.cells[bin];
             cell.add(&BoxSummary {
                 near: sample.band_start(self.max_range),
+                hit_near: f64::INFINITY,
                 far: sample.reach(self.max_range),
                 origin: TAIL * sample.sigma_origin,
                 filled: 0,

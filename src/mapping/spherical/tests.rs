@@ -126,12 +126,16 @@ fn box_queries_bound_the_beams_they_cover() {
         let s = grid.query(a, e);
         let (mut near, mut far, mut origin, mut filled) =
             (f64::INFINITY, f64::NEG_INFINITY, 0.0f64, 0u32);
+        let mut hit_near = f64::INFINITY;
         for aa in a.0..=a.1 {
             for ee in e.0..=e.1 {
                 let (beams, _) = grid.bin_beams(aa, ee);
                 filled += u32::from(!beams.is_empty());
                 for b in beams {
                     near = near.min(b.band_start(grid.max_range));
+                    if b.range.is_finite() {
+                        hit_near = hit_near.min(b.band_start(grid.max_range));
+                    }
                     far = far.max(b.reach(grid.max_range));
                     origin = origin.max(TAIL * b.sigma_origin);
                 }
@@ -142,8 +146,8 @@ fn box_queries_bound_the_beams_they_cover() {
         }
         let bins = ((a.1 - a.0 + 1) * (e.1 - e.0 + 1)) as u32;
         assert!(
-            s.near <= near && s.far >= far && s.origin >= origin,
-            "{s:?} vs {near} {far} {origin}"
+            s.near <= near && s.hit_near <= hit_near && s.far >= far && s.origin >= origin,
+            "{s:?} vs {near} {hit_near} {far} {origin}"
         );
         // A superset: at least the bins asked for, and "all filled" only
         // when they are.
@@ -152,9 +156,32 @@ fn box_queries_bound_the_beams_they_cover() {
             assert_eq!(filled, bins);
         }
         if a.0 == a.1 && e.0 == e.1 {
-            assert_eq!((s.near, s.far, s.bins, s.filled), (near, far, 1, filled));
+            assert_eq!(
+                (s.near, s.hit_near, s.far, s.bins, s.filled),
+                (near, hit_near, far, 1, filled)
+            );
         }
     }
+    // Each bin's own: a bin whose beams all had no return has no band of
+    // a beam with a return (its `near` is the maximum range).
+    let mut misses_only = 0;
+    for a in 0..dims[0] {
+        for e in 0..dims[1] {
+            let (beams, _) = grid.bin_beams(a, e);
+            let hit_near = beams
+                .iter()
+                .filter(|b| b.range.is_finite())
+                .map(|b| b.band_start(grid.max_range))
+                .fold(f64::INFINITY, f64::min);
+            misses_only += usize::from(!beams.is_empty() && hit_near == f64::INFINITY);
+            assert_eq!(
+                grid.query((a, a), (e, e)).hit_near,
+                hit_near,
+                "bin ({a}, {e})"
+            );
+        }
+    }
+    assert!(misses_only > 0, "no bin holds only beams without a return");
 }
 
 #[test]
