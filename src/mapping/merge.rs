@@ -297,10 +297,10 @@ impl<'a> Planner<'a> {
     /// (§5.4) from `H` (the index, or [`surface_off_bands`]) and the free
     /// share of its corners; `bands` false where the parent showed that
     /// [`surface_off_bands`] gives 0 (no band reaches, or the cell is surely
-    /// crossed). No ball test comes first: where the node tests above would find no
-    /// beam, every corner's bin is empty or beyond reach and `H` is 0 (no
-    /// update); where they would certify it free, every corner is free and
-    /// `H` is 0 (`p_lo`), so the evaluation gives what they give.
+    /// crossed). No ball test comes first: where the node tests above would
+    /// find no beam, every corner's bin is empty or beyond reach and `H` is 0
+    /// (no update); where they would certify it free, every corner is free
+    /// and `H` is 0 (`p_lo`), so the evaluation gives what they give.
     fn finest(
         &self,
         key: Key,
