@@ -71,9 +71,30 @@ impl LocalGrid {
     /// model. Call it once per grid.
     pub fn add_surface_samples(&mut self, gate: &SampleGate, range: &RangeModel) {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
+        let window = |a: usize, e: usize| self.window_on_one_plane(a, e, gate, range);
+        // Each block holds one bin of even indices: its window first, since
+        // a window on one plane settles the four blocks around its bin.
+        let mut even = Vec::new();
+        super::per_bin_into(&mut even, (na.div_ceil(2), ne.div_ceil(2)), |a, e| {
+            window(2 * a, 2 * e)
+        });
+        let even_planar = |a: usize, e: usize| even[super::bin_index(na.div_ceil(2), a / 2, e / 2)];
+        // The window of another bin matters only to a block whose even
+        // bin's window is not on one plane.
+        let unsettled = |a: usize, e: usize| {
+            let blocks_a = a.saturating_sub(1)..=a.min(na.saturating_sub(2));
+            blocks_a.into_iter().any(|ba| {
+                (e.saturating_sub(1)..=e.min(ne.saturating_sub(2)))
+                    .any(|be| !even_planar(ba + (ba & 1), be + (be & 1)))
+            })
+        };
         let mut planar = Vec::new();
         super::per_bin_into(&mut planar, (na, ne), |a, e| {
-            self.window_on_one_plane(a, e, gate, range)
+            if a % 2 == 0 && e % 2 == 0 {
+                even_planar(a, e)
+            } else {
+                unsettled(a, e) && window(a, e)
+            }
         });
         let sampled = |a: usize, e: usize| {
             a + 1 < na
