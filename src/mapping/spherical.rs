@@ -476,7 +476,12 @@ impl LocalGrid {
     pub fn into_buffers(self) -> GridBuffers {
         GridBuffers {
             offsets: self.offsets,
-            beams: self.beams,
+            // The next grid writes its beams in input order first, and in
+            // raster order they become its beams in place (`BinSort`): given
+            // these beams' memory for that, a map touches one buffer of
+            // beams, not two.
+            unbinned: self.beams,
+            beams: self.spare.unbinned,
             inverse: self.inverse,
             surfaces: self.surfaces,
             levels: self.levels.into_iter().map(|l| l.cells).collect(),
