@@ -82,8 +82,7 @@ impl LocalGrid {
         // The window of another bin matters only to a block whose even
         // bin's window is not on one plane.
         let unsettled = |a: usize, e: usize| {
-            let blocks_a = a.saturating_sub(1)..=a.min(na.saturating_sub(2));
-            blocks_a.into_iter().any(|ba| {
+            (a.saturating_sub(1)..=a.min(na.saturating_sub(2))).any(|ba| {
                 (e.saturating_sub(1)..=e.min(ne.saturating_sub(2)))
                     .any(|be| !even_planar(ba + (ba & 1), be + (be & 1)))
             })

@@ -6,8 +6,8 @@
 //! `t` with `φ(t)/t ≤ s` bounds the tail below `s` for every `x ≥ t`. The
 //! table holds such a `t` for the smallest `s` of each eighth of an octave
 //! (the f64's exponent and first three mantissa bits): larger than the exact
-//! root for every `s` of the bucket, by at most ~0.03 (a bucket spans 9% of
-//! `s`, and the root moves by `Δs/s / (x + 1/x)`).
+//! root for every `s` of the bucket, by a few hundredths (a bucket spans 9%
+//! of `s`, and the root moves by `Δs/s / (x + 1/x)`).
 
 use std::sync::LazyLock;
 
