@@ -91,6 +91,47 @@ fn contents(grid: &LocalGrid) -> String {
     out
 }
 
+/// Beams in raster order, one or two a bin (a tenth without a return), on
+/// `bins` of [`grid_of_ends`]: the input order that `BinSort` keeps in place.
+fn raster_ends(rng: &mut impl Rng, bins: [usize; 2]) -> Vec<BeamEnd> {
+    let mut ends = Vec::new();
+    for e in 0..bins[1] {
+        for a in 0..bins[0] {
+            for _ in 0..rng.random_range(1..=2) {
+                let az: f64 = -0.2 + (a as f64 + rng.random_range(0.2..0.8)) * 0.01;
+                let el: f64 = -0.2 + (e as f64 + rng.random_range(0.2..0.8)) * 0.01;
+                let direction = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+                let sigma = rng.random_range(0.001..0.05);
+                ends.push(if rng.random_bool(0.1) {
+                    BeamEnd::Miss { direction }
+                } else {
+                    BeamEnd::Hit {
+                        point: direction * rng.random_range(0.2..1.5),
+                        covariance: Matrix3::identity() * sigma * sigma,
+                    }
+                });
+            }
+        }
+    }
+    ends
+}
+
+/// Raster-ordered beams stay where they were computed, and a grid's beams
+/// become the next grid's input buffer (`LocalGrid::into_buffers`): a chain
+/// of grids, each in the last one's memory, is the chain built fresh.
+#[test]
+fn raster_grids_built_each_in_the_last_ones_memory_are_the_same_grids() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
+    let mut buffers = GridBuffers::default();
+    for bins in [[30, 20], [41, 33], [25, 18], [41, 33]] {
+        let ends = raster_ends(&mut rng, bins);
+        let fresh = grid_of_ends(GridBuffers::default(), &ends, bins);
+        let reused = grid_of_ends(buffers, &ends, bins);
+        assert_eq!(contents(&reused), contents(&fresh), "{bins:?}");
+        buffers = reused.into_buffers();
+    }
+}
+
 #[test]
 fn a_grid_built_in_another_grids_memory_is_the_same_grid() {
     // Larger and smaller grids before it, so that every array was longer
