@@ -63,8 +63,9 @@ impl SurfaceBlock<'_> {
 ///
 /// A chord `[a, b]` that the surface `λ ~ N(r, σ²)` misses by
 /// `x = max(a − r, r − b)/σ ≥ 0` holds it with `P(a ≤ λ ≤ b) ≤ Φ(−x) ≤
-/// min(½ e^(−x²/2), φ(x)/x)` (the Chernoff bound, and Mills' ratio, the
-/// tighter beyond x ≈ 0.8), and the origin step only lowers that. So once
+/// min(½ e^(−x²/2), φ(x) · 4/(3x + √(x² + 8)))` (the Chernoff bound, and
+/// Sampford's bound on Mills' ratio, the tighter beyond x ≈ 0.12: within 2%
+/// of the tail from x = 1 on), and the origin step only lowers that. So once
 /// that bound is below the value held by more than the rounding of
 /// `1 − Φ(x)` (1e-14 here, a hundred times it), the beam's term cannot raise
 /// it, computed or exact: it is skipped, and the index is the same to the
