@@ -63,10 +63,10 @@ impl SurfaceBlock<'_> {
 ///
 /// A chord `[a, b]` that the surface `λ ~ N(r, σ²)` misses by
 /// `x = max(a − r, r − b)/σ ≥ 0` holds it with `P(a ≤ λ ≤ b) ≤ Φ(−x) ≤
-/// min(½ e^(−x²/2), φ(x) · 4/(3x + √(x² + 8)))` (the Chernoff bound, and
-/// Sampford's bound on Mills' ratio, the tighter beyond x ≈ 0.12: within 2%
-/// of the tail from x = 1 on), and the origin step only lowers that. So once
-/// that bound is below the value held by more than the rounding of
+/// φ(x) · 4/(3x + √(x² + 8))` (Sampford's bound on Mills' ratio, within 2%
+/// of the tail from x = 1 on; `Φ(−x) ≤ ½` for any x ≥ 0), and the origin
+/// step only lowers that. So once that bound is below the value held by more
+/// than the rounding of
 /// `1 − Φ(x)` (1e-14 here, a hundred times it), the beam's term cannot raise
 /// it, computed or exact: it is skipped, and the index is the same to the
 /// bit (the most evaluations by far are such tails, 92% of them on the
@@ -85,8 +85,7 @@ impl Held {
         } else if slack >= 0.5 {
             0.0
         } else {
-            let chernoff = (2.0 * (0.5 / slack).ln()).sqrt() + 1e-9;
-            chernoff.min(mills::beyond(slack))
+            mills::beyond(slack)
         };
         Self {
             value,

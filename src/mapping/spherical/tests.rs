@@ -35,17 +35,23 @@ fn random_ends(rng: &mut impl Rng, count: usize) -> Vec<BeamEnd> {
     (0..count)
         .map(|_| {
             let direction = random_direction(rng);
-            if rng.random_bool(0.1) {
-                BeamEnd::Miss { direction }
-            } else {
-                let sigma = rng.random_range(0.001..0.05);
-                BeamEnd::Hit {
-                    point: direction * rng.random_range(0.2..1.5),
-                    covariance: Matrix3::identity() * sigma * sigma,
-                }
-            }
+            random_end(rng, direction)
         })
         .collect()
+}
+
+/// A random beam end along `direction`: a tenth without a return, the rest
+/// at a random range with a random σ.
+fn random_end(rng: &mut impl Rng, direction: Vector3) -> BeamEnd {
+    if rng.random_bool(0.1) {
+        BeamEnd::Miss { direction }
+    } else {
+        let sigma = rng.random_range(0.001..0.05);
+        BeamEnd::Hit {
+            point: direction * rng.random_range(0.2..1.5),
+            covariance: Matrix3::identity() * sigma * sigma,
+        }
+    }
 }
 
 /// The grid of `ends` on `bins` (azimuth x elevation) of 0.01 rad from
@@ -101,15 +107,7 @@ fn raster_ends(rng: &mut impl Rng, bins: [usize; 2]) -> Vec<BeamEnd> {
                 let az: f64 = -0.2 + (a as f64 + rng.random_range(0.2..0.8)) * 0.01;
                 let el: f64 = -0.2 + (e as f64 + rng.random_range(0.2..0.8)) * 0.01;
                 let direction = Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
-                let sigma = rng.random_range(0.001..0.05);
-                ends.push(if rng.random_bool(0.1) {
-                    BeamEnd::Miss { direction }
-                } else {
-                    BeamEnd::Hit {
-                        point: direction * rng.random_range(0.2..1.5),
-                        covariance: Matrix3::identity() * sigma * sigma,
-                    }
-                });
+                ends.push(random_end(rng, direction));
             }
         }
     }

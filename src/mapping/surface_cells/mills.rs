@@ -18,8 +18,8 @@ use std::sync::LazyLock;
 const SUB_BITS: u32 = 3;
 /// Bit position of a bucket's index in an f64.
 const SHIFT: u32 = 52 - SUB_BITS;
-/// The smallest bucket: `s` from 2^-60 (below it the Chernoff bound's
-/// threshold, ~9σ, is beyond every band anyway).
+/// The smallest bucket: `s` from 2^-60 (below it the threshold, ~9σ, lies
+/// beyond every band's ±7σ: nothing is skipped there anyway).
 const FIRST: u64 = ((1023 - 60) << SUB_BITS) as u64;
 /// Buckets up to `s` = ½ (where no threshold is needed).
 const BUCKETS: usize = 59 << SUB_BITS;
