@@ -66,11 +66,10 @@ impl SurfaceBlock<'_> {
 /// φ(x) · 4/(3x + √(x² + 8))` (Sampford's bound on Mills' ratio, within 2%
 /// of the tail from x = 1 on; `Φ(−x) ≤ ½` for any x ≥ 0), and the origin
 /// step only lowers that. So once that bound is below the value held by more
-/// than the rounding of
-/// `1 − Φ(x)` (1e-14 here, a hundred times it), the beam's term cannot raise
-/// it, computed or exact: it is skipped, and the index is the same to the
-/// bit (the most evaluations by far are such tails, 92% of them on the
-/// insertion benchmark's scans at 2 cm).
+/// than the rounding of `1 − Φ(x)` (1e-14 here, a hundred times it), the
+/// beam's term cannot raise it, computed or exact: it is skipped, and the
+/// index is the same to the bit (the most evaluations by far are such tails,
+/// 92% of them on the insertion benchmark's scans at 2 cm).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Held {
     value: f64,
