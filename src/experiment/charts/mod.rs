@@ -38,14 +38,41 @@ pub struct Panel<'a> {
     pub series: &'a [Series],
 }
 
-const COLOURS: [RGBColor; 6] = [
+/// Tableau's ten categorical colours; lines past the tenth repeat them
+/// dashed, so twenty lines are told apart ([`LineStyle::of`]).
+const COLOURS: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
     RGBColor(214, 39, 40),
     RGBColor(148, 103, 189),
     RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
 ];
+
+/// A panel with more lines than this gets its legend in a strip below the
+/// panels: a box inside the plot would cover the lines.
+pub const IN_PLOT_LEGEND: usize = 6;
+
+/// How line `k` of a figure is drawn: its colour, and dashed from the
+/// eleventh line on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct LineStyle {
+    colour: RGBColor,
+    dashed: bool,
+}
+
+impl LineStyle {
+    fn of(k: usize) -> Self {
+        Self {
+            colour: COLOURS[k % COLOURS.len()],
+            dashed: (k / COLOURS.len()) % 2 == 1,
+        }
+    }
+}
 
 fn transform(v: f64, log: bool) -> Option<f64> {
     match (log, v.is_finite()) {
@@ -140,23 +167,106 @@ pub fn panels(path: &Path, panels: &[Panel]) -> Result<()> {
 }
 
 /// Writes panels in rows of `columns` into an SVG file (staged, then renamed).
+/// Each panel names its lines in a box where they leave room; when a panel
+/// has more than [`IN_PLOT_LEGEND`] lines, the figure names them all once in
+/// a strip below the panels instead, and a name keeps its style in every
+/// panel.
 pub fn panel_grid(path: &Path, columns: usize, panels: &[Panel]) -> Result<()> {
     let mut svg = String::new();
     draw_panels(&mut svg, path, columns.max(1), panels)?;
     crate::files::write_file(path, svg.as_bytes())
 }
 
+/// The names of a figure's lines in order of first appearance, if some
+/// panel has too many lines for a legend inside it.
+fn shared_key(panels: &[Panel]) -> Option<Vec<String>> {
+    if panels.iter().all(|p| p.series.len() <= IN_PLOT_LEGEND) {
+        return None;
+    }
+    let mut names: Vec<String> = Vec::new();
+    for series in panels.iter().flat_map(|p| p.series) {
+        if !names.contains(&series.name) {
+            names.push(series.name.clone());
+        }
+    }
+    Some(names)
+}
+
+/// The strip below the panels that names `key`: entries of a common width
+/// in rows across `width` pixels. Returns its height and entries per row.
+fn key_layout(key: &[String], width: u32) -> (u32, usize) {
+    let longest = key.iter().map(|n| n.chars().count()).max().unwrap_or(0) as u32;
+    let entry = KEY_SWATCH + 7 * longest + 24;
+    let per_row = (width.saturating_sub(20) / entry.max(1)).max(1) as usize;
+    let rows = key.len().div_ceil(per_row) as u32;
+    (20 * rows + 20, per_row)
+}
+
+/// Pixels of a key entry's line sample and the gap after it.
+const KEY_SWATCH: u32 = 34;
+
 fn draw_panels(svg: &mut String, path: &Path, columns: usize, panels: &[Panel]) -> Result<()> {
     let rows = panels.len().div_ceil(columns).max(1);
-    let size = (560 * columns as u32, 420 * rows as u32);
+    let width = 560 * columns as u32;
+    let key = shared_key(panels);
+    let (strip, per_row) = key.as_deref().map_or((0, 1), |k| key_layout(k, width));
+    let size = (width, 420 * rows as u32 + strip);
     let root = SVGBackend::with_string(svg, size).into_drawing_area();
     let err = |e: &dyn std::fmt::Display| Error::input(path, format!("cannot draw the chart: {e}"));
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    let areas = root.split_evenly((rows, columns));
+    let (plots, below) = root.split_vertically(420 * rows as u32);
+    let areas = plots.split_evenly((rows, columns));
     for (area, panel) in areas.iter().zip(panels) {
-        draw_panel(area, panel).map_err(|e| err(&e))?;
+        draw_panel(area, panel, key.as_deref()).map_err(|e| err(&e))?;
+    }
+    if let Some(key) = &key {
+        draw_key(&below, key, per_row).map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))
+}
+
+/// The shared legend: each name after a sample of its line, `per_row` to a
+/// row.
+fn draw_key(
+    strip: &DrawingArea<SVGBackend, Shift>,
+    key: &[String],
+    per_row: usize,
+) -> std::result::Result<(), String> {
+    let text = |e: &dyn std::fmt::Display| e.to_string();
+    let longest = key.iter().map(|n| n.chars().count()).max().unwrap_or(0) as i32;
+    let entry = (KEY_SWATCH as i32) + 7 * longest + 24;
+    let style = ("sans-serif", 13).into_font().color(&BLACK);
+    for (k, name) in key.iter().enumerate() {
+        let (x, y) = (
+            20 + entry * (k % per_row) as i32,
+            10 + 20 * (k / per_row) as i32,
+        );
+        let line = LineStyle::of(k);
+        let sample: Vec<(i32, i32)> = if line.dashed {
+            vec![(x, y + 8), (x + 10, y + 8)]
+        } else {
+            vec![(x, y + 8), (x + 26, y + 8)]
+        };
+        strip
+            .draw(&PathElement::new(sample, line.colour.stroke_width(2)))
+            .map_err(|e| text(&e))?;
+        if line.dashed {
+            strip
+                .draw(&PathElement::new(
+                    vec![(x + 16, y + 8), (x + 26, y + 8)],
+                    line.colour.stroke_width(2),
+                ))
+                .map_err(|e| text(&e))?;
+        }
+        strip
+            .draw(&Text::new(
+                name.clone(),
+                (x + KEY_SWATCH as i32, y),
+                style.clone(),
+            ))
+            .map_err(|e| text(&e))?;
+    }
+    Ok(())
 }
 
 /// A panel's series on its axes (log axes as log10): per series its line
@@ -197,11 +307,13 @@ fn panel_points(panel: &Panel) -> (Vec<Vec<(f64, f64)>>, Vec<Vec<(f64, f64, f64)
 
 type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
-/// One panel: axes fitted to its data, its series, its legend where the
-/// lines leave room.
+/// One panel: axes fitted to its data, its series, and its legend where the
+/// lines leave room; with a figure's shared `key`, each line takes the style
+/// of its name there and the panel draws no legend of its own.
 fn draw_panel(
     area: &DrawingArea<SVGBackend, Shift>,
     panel: &Panel,
+    key: Option<&[String]>,
 ) -> std::result::Result<(), String> {
     let text = |e: &dyn std::fmt::Display| e.to_string();
     let (lines, bars) = panel_points(panel);
@@ -231,7 +343,14 @@ fn draw_panel(
         .draw()
         .map_err(|e| text(&e))?;
     for (k, (series, points)) in panel.series.iter().zip(&lines).enumerate() {
-        draw_series(&mut chart, k, series, points, &bars[k]).map_err(|e| text(&e))?;
+        let style = key
+            .and_then(|key| key.iter().position(|name| *name == series.name))
+            .unwrap_or(k);
+        let line = LineStyle::of(style);
+        draw_series(&mut chart, line, series, points, &bars[k]).map_err(|e| text(&e))?;
+    }
+    if key.is_some() {
+        return Ok(());
     }
     let bar_lines = bars_as_lines(&bars);
     let drawn = lines.iter().chain(&bar_lines).map(|l| &l[..]);
@@ -251,17 +370,17 @@ fn draw_panel(
         .map_err(|e| text(&e))
 }
 
-/// Series `k` of a panel: its interval bars, its line (named in the
-/// legend) and, for a few points, dots.
+/// A series of a panel in `line`'s style: its interval bars, its line
+/// (named in the legend) and, for a few points, dots.
 fn draw_series(
     chart: &mut Chart,
-    k: usize,
+    line: LineStyle,
     series: &Series,
     points: &[(f64, f64)],
     bars: &[(f64, f64, f64)],
 ) -> std::result::Result<(), String> {
     let text = |e: &dyn std::fmt::Display| e.to_string();
-    let colour = COLOURS[k % COLOURS.len()];
+    let colour = line.colour;
     if points.is_empty() && bars.is_empty() {
         // Nothing to draw (nor to name); its colour stays its own.
         return Ok(());
@@ -273,11 +392,20 @@ fn draw_series(
             }),
         )
         .map_err(|e| text(&e))?;
-    chart
-        .draw_series(LineSeries::new(
+    let labelled = if line.dashed {
+        chart.draw_series(DashedLineSeries::new(
+            points.iter().copied(),
+            6,
+            4,
+            colour.stroke_width(2),
+        ))
+    } else {
+        chart.draw_series(LineSeries::new(
             points.iter().copied(),
             colour.stroke_width(2),
         ))
+    };
+    labelled
         .map_err(|e| text(&e))?
         .label(series.name.clone())
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
@@ -292,6 +420,68 @@ fn draw_series(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn twenty_lines_are_drawn_in_twenty_styles() {
+        let styles: Vec<LineStyle> = (0..20).map(LineStyle::of).collect();
+        for (i, a) in styles.iter().enumerate() {
+            for b in &styles[..i] {
+                assert_ne!(a, b);
+            }
+        }
+    }
+
+    /// The `y` of the SVG text element that reads exactly `name`.
+    fn text_y(svg: &str, name: &str) -> f64 {
+        let end = svg
+            .find(&format!(">\n{name}\n</text>"))
+            .unwrap_or_else(|| panic!("no text {name}"));
+        let open = svg[..end].rfind("<text").unwrap();
+        let y = &svg[open..end];
+        let at = y.find(" y=\"").unwrap() + 4;
+        y[at..at + y[at..].find('"').unwrap()].parse().unwrap()
+    }
+
+    #[test]
+    fn a_crowded_panel_names_its_lines_below_the_plots_and_a_sparse_one_inside() {
+        let lines = |n: usize| -> Vec<Series> {
+            (0..n)
+                .map(|k| Series {
+                    name: format!("line {k}"),
+                    points: vec![(0.0, k as f64), (1.0, k as f64 + 0.5)],
+                    intervals: Vec::new(),
+                })
+                .collect()
+        };
+        let draw = |series: &[Series]| {
+            let panel = Panel {
+                title: "t",
+                x_label: "x",
+                y_label: "y",
+                log_x: false,
+                log_y: false,
+                series,
+            };
+            let mut svg = String::new();
+            draw_panels(&mut svg, Path::new("t.svg"), 1, &[panel]).unwrap();
+            svg
+        };
+        let height = |svg: &str| -> f64 {
+            let at = svg.find("height=\"").unwrap() + 8;
+            svg[at..at + svg[at..].find('"').unwrap()].parse().unwrap()
+        };
+        let sparse = draw(&lines(IN_PLOT_LEGEND));
+        assert_eq!(height(&sparse), 420.0);
+        for k in 0..IN_PLOT_LEGEND {
+            assert!(text_y(&sparse, &format!("line {k}")) < 420.0);
+        }
+        let crowded = draw(&lines(IN_PLOT_LEGEND + 6));
+        assert!(height(&crowded) > 420.0);
+        for k in 0..IN_PLOT_LEGEND + 6 {
+            let y = text_y(&crowded, &format!("line {k}"));
+            assert!((420.0..height(&crowded)).contains(&y), "line {k} at {y}");
+        }
+    }
 
     #[test]
     fn the_legend_goes_where_the_lines_are_not() {

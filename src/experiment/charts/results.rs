@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::eval::scores::UNKNOWN_BAND;
-use crate::experiment::charts::{panels, Panel, Series};
+use crate::experiment::charts::{panel_grid, panels, Panel, Series, IN_PLOT_LEGEND};
 use crate::experiment::study::summary::SummaryRow;
 use crate::experiment::RunMethod;
 use crate::experiment::{Experiment, SweepValue};
@@ -24,22 +24,6 @@ fn mean<'a>(
     summary
         .iter()
         .find(|s| s.cell == cell && s.method == method.as_str() && s.metric == metric)
-}
-
-/// The series called `name`, appended empty if there is none yet.
-fn series_named(series: &mut Vec<Series>, name: String) -> &mut Series {
-    let index = match series.iter().position(|s| s.name == name) {
-        Some(i) => i,
-        None => {
-            series.push(Series {
-                name,
-                points: Vec::new(),
-                intervals: Vec::new(),
-            });
-            series.len() - 1
-        }
-    };
-    &mut series[index]
 }
 
 /// The first sweep axis as a chart's x axis: its label, and where each
@@ -82,25 +66,111 @@ impl FirstAxis {
     }
 }
 
+/// One chart line: a method's means over the first sweep axis at one value
+/// of the other axes (`rest`, empty without them).
+struct Line {
+    method: String,
+    rest: String,
+    points: Vec<(f64, f64)>,
+    intervals: Vec<(f64, f64, f64)>,
+}
+
+/// The line of `method` at `rest`, appended empty if there is none yet.
+fn line_of<'a>(lines: &'a mut Vec<Line>, method: &RunMethod, rest: String) -> &'a mut Line {
+    let method = method.to_string();
+    let index = match lines
+        .iter()
+        .position(|l| l.method == method && l.rest == rest)
+    {
+        Some(i) => i,
+        None => {
+            lines.push(Line {
+                method,
+                rest,
+                points: Vec::new(),
+                intervals: Vec::new(),
+            });
+            lines.len() - 1
+        }
+    };
+    &mut lines[index]
+}
+
+/// A cell's values as a chart names them: `field=value` joined by `; `, the
+/// experiment file's fields without their `experiment.` prefix.
+fn legend_label(cell: &[(String, SweepValue)]) -> String {
+    cell.iter()
+        .map(|(field, value)| {
+            let field = field.strip_prefix("experiment.").unwrap_or(field);
+            format!("{field}={value}")
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// A panel's lines, and its method when the figure has a panel per method.
+type MethodPanel = (Option<String>, Vec<Series>);
+
+/// The panels of a figure of `lines`: one panel naming each line `method
+/// rest`; or, when that panel would hold more than [`IN_PLOT_LEGEND`] lines
+/// of several methods at several values of the other axes, one panel per
+/// method (its name returned beside it) whose lines are named by those
+/// values alone, so that a value keeps its colour from panel to panel.
+fn by_method(lines: Vec<Line>) -> Vec<MethodPanel> {
+    let distinct = |of: &dyn Fn(&Line) -> &str| {
+        lines.iter().fold(Vec::<String>::new(), |mut seen, l| {
+            if !seen.iter().any(|s| s == of(l)) {
+                seen.push(of(l).to_string());
+            }
+            seen
+        })
+    };
+    let methods = distinct(&|l| &l.method);
+    let rests = distinct(&|l| &l.rest);
+    let series = |l: Line, name: String| Series {
+        name,
+        points: l.points,
+        intervals: l.intervals,
+    };
+    if lines.len() <= IN_PLOT_LEGEND || methods.len() < 2 || rests.len() < 2 {
+        let all = lines
+            .into_iter()
+            .map(|l| {
+                let name = if l.rest.is_empty() {
+                    l.method.clone()
+                } else {
+                    format!("{} {}", l.method, l.rest)
+                };
+                series(l, name)
+            })
+            .collect();
+        return vec![(None, all)];
+    }
+    let mut panels: Vec<MethodPanel> = methods
+        .iter()
+        .map(|m| (Some(m.clone()), Vec::new()))
+        .collect();
+    for line in lines {
+        let at = methods.iter().position(|m| *m == line.method).unwrap_or(0);
+        let name = line.rest.clone();
+        panels[at].1.push(series(line, name));
+    }
+    panels
+}
+
 /// One line per method (and value of the other axes) of `metric`'s means
 /// against the first axis, with their 95% intervals.
-fn series_over_cells(
+fn lines_over_cells(
     summary: &[SummaryRow],
     cells: &[Vec<(String, SweepValue)>],
     methods: &[RunMethod],
     axis: &FirstAxis,
     metric: &str,
-) -> Vec<Series> {
+) -> Vec<Line> {
     let label = |cell: &[(String, SweepValue)]| Experiment::cell_label(cell);
-    let mut out: Vec<Series> = Vec::new();
+    let mut out: Vec<Line> = Vec::new();
     for method in methods {
         for cell in cells {
-            let rest = label(&cell[1..]);
-            let name = if rest.is_empty() {
-                method.to_string()
-            } else {
-                format!("{method} {rest}")
-            };
             let Some(row) = mean(summary, &label(cell), method, metric) else {
                 continue;
             };
@@ -108,14 +178,23 @@ fn series_over_cells(
                 continue;
             }
             let x = axis.x(&cell[0].1);
-            let series = series_named(&mut out, name);
-            series.points.push((x, row.mean));
+            let line = line_of(&mut out, method, legend_label(&cell[1..]));
+            line.points.push((x, row.mean));
             if row.ci95_low.is_finite() {
-                series.intervals.push((x, row.ci95_low, row.ci95_high));
+                line.intervals.push((x, row.ci95_low, row.ci95_high));
             }
         }
     }
     out
+}
+
+/// A panel's title: the chart's, and the method when the figure has a
+/// panel per method.
+fn titled(title: &str, method: Option<&String>) -> String {
+    match method {
+        Some(method) => format!("{title}: {method}"),
+        None => title.to_string(),
+    }
 }
 
 /// `scores.svg`: F1, false-free rate, Brier and ANEES against the first sweep
@@ -130,46 +209,66 @@ pub fn plot_scores(
     let Some(axis) = FirstAxis::of(cells) else {
         return Ok(Vec::new());
     };
-    let series_for = |metric: &str| series_over_cells(summary, cells, methods, &axis, metric);
+    let panels_for =
+        |metric: &str| by_method(lines_over_cells(summary, cells, methods, &axis, metric));
     let metrics = [
         ("f1", "occupied F1", false),
         ("false_free_rate", "false-free rate", false),
         ("brier", "Brier score", false),
         ("anees", "ANEES (3 = honest)", true),
     ];
-    let all: Vec<(Vec<Series>, &str, bool)> = metrics
+    // One row per metric: a panel, or one per method when crowded.
+    let rows: Vec<(Vec<MethodPanel>, &str, bool)> = metrics
         .iter()
-        .map(|(m, title, log)| (series_for(m), *title, *log))
+        .map(|(m, title, log)| (panels_for(m), *title, *log))
         .collect();
-    let list: Vec<Panel> = all
+    let titles: Vec<Vec<String>> = rows
         .iter()
-        .map(|(series, title, log)| Panel {
-            title,
-            x_label: &axis.label,
-            y_label: title,
-            log_x: false,
-            log_y: *log,
-            series,
+        .map(|(row, title, _)| row.iter().map(|(m, _)| titled(title, m.as_ref())).collect())
+        .collect();
+    let list: Vec<Panel> = rows
+        .iter()
+        .zip(&titles)
+        .flat_map(|((row, title, log), names)| {
+            row.iter().zip(names).map(|((_, series), name)| Panel {
+                title: name,
+                x_label: &axis.label,
+                y_label: title,
+                log_x: false,
+                log_y: *log,
+                series,
+            })
         })
         .collect();
-    panels(path, &list)?;
+    let columns = rows.iter().map(|(row, _, _)| row.len()).max().unwrap_or(1);
+    if columns > 1 {
+        panel_grid(path, columns, &list)?;
+    } else {
+        panels(path, &list)?;
+    }
     let mut written = vec![path.to_path_buf()];
     // And every metric of summary.csv on its own chart, beside the overview.
     let dir = path.parent().unwrap_or(Path::new("."));
     for metric in crate::experiment::study::metrics::summarised().map(|m| m.name) {
-        let series = series_for(metric);
-        let chart = dir.join(format!("score_{metric}.svg"));
-        panels(
-            &chart,
-            &[Panel {
-                title: metric,
+        let row = panels_for(metric);
+        let names: Vec<String> = row
+            .iter()
+            .map(|(m, _)| titled(metric, m.as_ref()))
+            .collect();
+        let list: Vec<Panel> = row
+            .iter()
+            .zip(&names)
+            .map(|((_, series), name)| Panel {
+                title: name,
                 x_label: &axis.label,
                 y_label: metric,
                 log_x: false,
                 log_y: metric == "anees",
-                series: &series,
-            }],
-        )?;
+                series,
+            })
+            .collect();
+        let chart = dir.join(format!("score_{metric}.svg"));
+        panels(&chart, &list)?;
         written.push(chart);
     }
     Ok(written)
@@ -192,7 +291,7 @@ pub fn plot_safety(
     else {
         return Ok(Vec::new());
     };
-    let mut series: Vec<Series> = Vec::new();
+    let mut lines: Vec<Line> = Vec::new();
     for method in methods {
         for cell in cells {
             let others: Vec<(String, SweepValue)> = cell
@@ -201,12 +300,6 @@ pub fn plot_safety(
                 .filter(|(i, _)| *i != risk_axis)
                 .map(|(_, v)| v.clone())
                 .collect();
-            let rest = Experiment::cell_label(&others);
-            let name = if rest.is_empty() {
-                method.to_string()
-            } else {
-                format!("{method} {rest}")
-            };
             let label = Experiment::cell_label(cell);
             let (Some(precision), Some(false_free)) = (
                 mean(summary, &label, method, "precision"),
@@ -217,7 +310,7 @@ pub fn plot_safety(
             if !(precision.mean.is_finite() && false_free.mean.is_finite()) {
                 continue;
             }
-            let line = series_named(&mut series, name);
+            let line = line_of(&mut lines, method, legend_label(&others));
             let x = precision.mean;
             line.points.push((x, false_free.mean));
             if false_free.ci95_low.is_finite() {
@@ -226,17 +319,22 @@ pub fn plot_safety(
             }
         }
     }
-    panels(
-        path,
-        &[Panel {
-            title: "safety curve: false-free rate vs precision as the risk level varies",
+    let title = "safety curve: false-free rate vs precision as the risk level varies";
+    let row = by_method(lines);
+    let names: Vec<String> = row.iter().map(|(m, _)| titled(title, m.as_ref())).collect();
+    let list: Vec<Panel> = row
+        .iter()
+        .zip(&names)
+        .map(|((_, series), name)| Panel {
+            title: name,
             x_label: "precision",
             y_label: "false-free rate (lower is safer)",
             log_x: false,
             log_y: false,
-            series: &series,
-        }],
-    )?;
+            series,
+        })
+        .collect();
+    panels(path, &list)?;
     Ok(vec![path.to_path_buf()])
 }
 
@@ -496,4 +594,58 @@ fn draw_slice(
         }
     }
     root.present().map_err(|e| err(&e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lines(methods: &[&str], rests: usize) -> Vec<Line> {
+        methods
+            .iter()
+            .flat_map(|m| {
+                (0..rests).map(move |r| Line {
+                    method: m.to_string(),
+                    rest: format!("risk={r}"),
+                    points: vec![(0.0, r as f64)],
+                    intervals: Vec::new(),
+                })
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_crowded_figure_gets_a_panel_per_method_whose_lines_are_the_other_values() {
+        let panels = by_method(lines(&["unscented", "ray_update", "registered_truth"], 4));
+        assert_eq!(panels.len(), 3);
+        for ((method, series), want) in
+            panels
+                .iter()
+                .zip(["unscented", "ray_update", "registered_truth"])
+        {
+            assert_eq!(method.as_deref(), Some(want));
+            let names: Vec<&str> = series.iter().map(|s| s.name.as_str()).collect();
+            assert_eq!(names, ["risk=0", "risk=1", "risk=2", "risk=3"]);
+        }
+        // Few enough lines for one panel: each named by method and values.
+        let one = by_method(lines(&["unscented", "ray_update"], 3));
+        assert_eq!(one.len(), 1);
+        assert_eq!(one[0].0, None);
+        assert_eq!(one[0].1.len(), 6);
+        assert_eq!(one[0].1[4].name, "ray_update risk=1");
+        // One method, however many lines: one panel.
+        assert_eq!(by_method(lines(&["unscented"], 12)).len(), 1);
+    }
+
+    #[test]
+    fn legends_name_the_experiment_files_fields_without_their_prefix() {
+        let cell = vec![
+            ("experiment.risk".to_string(), SweepValue::Number(0.5)),
+            (
+                "profile.range.sigma0".to_string(),
+                SweepValue::Number(0.001),
+            ),
+        ];
+        assert_eq!(legend_label(&cell), "risk=0.5; profile.range.sigma0=0.001");
+    }
 }

@@ -33,6 +33,7 @@ fn caption(name: &str) -> String {
     match name {
         "scores.svg" => {
             "F1, false-free rate, Brier and ANEES against the sweep, one line per method \
+             and value of the other axes, a panel per method when those are more than six \
              (bars: 95% intervals over the seeds)"
                 .into()
         }
