@@ -5,6 +5,7 @@
 
 pub mod figures;
 pub mod results;
+pub mod slice;
 
 use crate::error::{Error, Result};
 use plotters::coord::types::RangedCoordf64;

@@ -16,7 +16,10 @@ use crate::experiment::study::summary::{
 };
 use crate::experiment::Experiment;
 use crate::experiment::RunMethod;
-use crate::experiment::{charts::results, output::report};
+use crate::experiment::{
+    charts::{results, slice},
+    output::report,
+};
 use crate::mapping::octomap_io::write_octree;
 use crate::mapping::Octree;
 use rayon::prelude::*;
@@ -280,12 +283,12 @@ fn write_first_maps(
         }
     }
     let pairs: Vec<_> = cell.methods().iter().cloned().zip(maps.iter()).collect();
-    results::plot_slice(
+    slice::plot_slice(
         &out.join("slice.svg"),
         truth,
         &pairs,
         &workspace,
-        results::slice_height(truth),
+        slice::slice_height(truth),
     )
 }
 
