@@ -154,11 +154,20 @@ fn legend_corner<'a>(
     }
 }
 
+/// A tick's label: the value on a linear axis, and on a log axis (where `v`
+/// is its `log10`) the value in plain digits, to two significant digits
+/// below 100 and whole from 100 on, from 0.01 to 10 000; in scientific
+/// notation beyond.
 fn label(v: f64, log: bool) -> String {
-    if log {
-        format!("{:.1e}", 10f64.powf(v))
+    if !log {
+        return format!("{v:.3}");
+    }
+    let x = 10f64.powf(v);
+    if (0.01..10_000.0).contains(&x.abs()) {
+        let decimals = (1.0 - x.abs().log10().floor()).max(0.0) as usize;
+        format!("{x:.decimals$}")
     } else {
-        format!("{v:.3}")
+        format!("{x:.1e}")
     }
 }
 
@@ -421,6 +430,19 @@ fn draw_series(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn log_ticks_read_as_plain_numbers_within_four_decades() {
+        let tick = |x: f64| label(x.log10(), true);
+        assert_eq!(tick(3.16), "3.2");
+        assert_eq!(tick(31.6), "32");
+        assert_eq!(tick(2120.5), "2121");
+        assert_eq!(tick(0.0316), "0.032");
+        assert_eq!(tick(1.0), "1.0");
+        assert_eq!(tick(250_000.0), "2.5e5");
+        assert_eq!(tick(0.001), "1.0e-3");
+        assert_eq!(label(0.25, false), "0.250");
+    }
 
     #[test]
     fn twenty_lines_are_drawn_in_twenty_styles() {
