@@ -337,6 +337,12 @@ pub(crate) struct ScoreArgs {
     /// Append the row to this CSV (runs.csv columns; created if absent).
     #[arg(long)]
     csv: Option<PathBuf>,
+    /// Write the scored cells the map calls wrongly (false-free and
+    /// false-occupied), their centres in the map frame: FILE.csv (a table:
+    /// x,y,z,error,log_odds,probability) or FILE.ply (points coloured by
+    /// error, for CloudCompare or MeshLab).
+    #[arg(long, value_name = "FILE")]
+    errors: Option<PathBuf>,
     #[command(flatten)]
     run: RunOptions,
 }

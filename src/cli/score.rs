@@ -4,37 +4,42 @@
 
 use super::{with_threads, ScoreArgs};
 use crate::error::{Error, Result};
+use crate::experiment::output::wrong_cells::{write_wrong_cells, ErrorsFormat};
 use crate::experiment::run::recorded::read_scan_graph;
 use crate::experiment::run::runner::append_row;
-use crate::experiment::run::scoring::{score_against_scene, score_external};
+use crate::experiment::run::scoring::{score_against_scene, score_external, Scored};
 use crate::experiment::study::metrics::{Kind, RunRow, METRICS};
 use crate::experiment::Experiment;
 use crate::geometry::Pose;
 use crate::mapping::octomap_io::read_octree;
 use crate::mapping::octree::Clamp;
+use crate::mapping::Octree;
 use crate::sim::scene::Scene;
 
 /// `sigmap score`.
 pub(crate) fn run(args: ScoreArgs) -> Result<()> {
     check_roles(&args)?;
+    let errors = args.errors.as_deref().map(ErrorsFormat::of).transpose()?;
+    let list_wrong = errors.is_some();
     let name = crate::files::stem(&args.map);
-    let (row, against) = match (&args.scene, &args.experiment) {
-        (Some(scene), _) => against_scene(&args, scene, &name)?,
+    let (scored, map, against) = match (&args.scene, &args.experiment) {
+        (Some(scene), _) => against_scene(&args, scene, &name, list_wrong)?,
         (None, Some(path)) => {
             let experiment =
                 Experiment::load_cell_index(path, args.cell).map_err(super::cell_flag)?;
             let seed = args.run.seed.unwrap_or(experiment.seed());
             let map = read_octree(&args.map, experiment.map().clamp())
                 .map_err(|e| e.context("the map (first argument): "))?;
-            let row = with_threads(args.run.threads, || {
-                score_external(&experiment, seed, &map, &name)
+            let scored = with_threads(args.run.threads, || {
+                score_external(&experiment, seed, &map, &name, list_wrong)
             })??;
             let cell = match Experiment::cell_label(experiment.cell()) {
                 label if label.is_empty() => String::new(),
                 label => format!(", cell {label}"),
             };
             (
-                row,
+                scored,
+                map,
                 format!("experiment '{}', seed {seed}{cell}", experiment.name()),
             )
         }
@@ -44,8 +49,12 @@ pub(crate) fn run(args: ScoreArgs) -> Result<()> {
             ))
         }
     };
+    let Scored { row, wrong } = scored;
     if let Some(path) = &args.csv {
         append_row(path, &row).map_err(|e| e.hint("choose another --csv file"))?;
+    }
+    if let (Some(path), Some(format)) = (&args.errors, errors) {
+        write_wrong_cells(path, format, &map, &wrong)?;
     }
     if !args.run.quiet {
         print_row(&format!("{} against {against}:", args.map.display()), &row);
@@ -55,6 +64,13 @@ pub(crate) fn run(args: ScoreArgs) -> Result<()> {
             .is_some_and(|e| e.eq_ignore_ascii_case("bt"))
         {
             eprintln!("{BT_NOTE}");
+        }
+        if let Some(path) = &args.errors {
+            eprintln!(
+                "wrote {}: the {} scored cells the map calls wrongly",
+                path.display(),
+                wrong.len()
+            );
         }
     }
     Ok(())
@@ -88,7 +104,8 @@ fn against_scene(
     args: &ScoreArgs,
     scene: &std::path::Path,
     name: &str,
-) -> Result<(RunRow, String)> {
+    list_wrong: bool,
+) -> Result<(Scored, Octree, String)> {
     if args.run.seed.is_some() {
         return Err(Error::Usage(
             "--seed does not apply with --scene: recorded scans have no seed".into(),
@@ -111,7 +128,7 @@ fn against_scene(
         .map_err(|e| e.context("the map (first argument): "))?;
     let [x, y, z, roll, pitch, yaw] = args.scene_pose.unwrap_or([0.0; 6]);
     let map_from_scene = Pose::new([x, y, z], [roll, pitch, yaw]).to_isometry();
-    let row = with_threads(args.run.threads, || {
+    let scored = with_threads(args.run.threads, || {
         score_against_scene(
             &map,
             &scene_data,
@@ -119,10 +136,12 @@ fn against_scene(
             &nodes,
             args.max_range,
             name,
+            list_wrong,
         )
     })??;
     Ok((
-        row,
+        scored,
+        map,
         format!("scene {} seen by {}", scene.display(), scans.display()),
     ))
 }

@@ -56,6 +56,62 @@ fn call(log_odds: Option<f32>) -> Call {
     }
 }
 
+/// How a map calls a scored cell wrongly.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CellError {
+    /// Truly occupied, called free: the collision risk.
+    FalseFree,
+    /// Truly free, called occupied.
+    FalseOccupied,
+}
+
+impl CellError {
+    /// The name `sigmap score --errors` writes.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::FalseFree => "false_free",
+            Self::FalseOccupied => "false_occupied",
+        }
+    }
+}
+
+/// A scored finest cell the map calls wrongly, with the map's log-odds there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WrongCell {
+    /// The cell.
+    pub key: Key,
+    /// How it is wrong.
+    pub error: CellError,
+    /// The map's log-odds of the cell.
+    pub log_odds: f32,
+}
+
+/// The scored cells (`observable` and known to the truth) that `map` calls
+/// wrongly, in Morton order: the cells [`score_map`] counts in the false-free
+/// and false-occupied rates.
+pub fn wrong_cells(map: &Octree, truth: &Octree, observable: &FxHashSet<u64>) -> Vec<WrongCell> {
+    let mut cells: Vec<u64> = observable.iter().copied().collect();
+    cells.sort_unstable();
+    cells
+        .into_iter()
+        .filter_map(|code| {
+            let key = Key::from_morton(code);
+            let truly = truth.query(&key, DEPTH)? >= 0.0;
+            let log_odds = map.query(&key, DEPTH)?;
+            let error = match (truly, call(Some(log_odds))) {
+                (true, Call::Free) => CellError::FalseFree,
+                (false, Call::Occupied) => CellError::FalseOccupied,
+                _ => return None,
+            };
+            Some(WrongCell {
+                key,
+                error,
+                log_odds,
+            })
+        })
+        .collect()
+}
+
 /// Scores `map` against `truth` over the `observable` finest cells (Morton
 /// codes). Both trees must have the same resolution.
 pub fn score_map(map: &Octree, truth: &Octree, observable: &FxHashSet<u64>) -> MapScores {
@@ -246,6 +302,45 @@ pub fn roc_auc(scored: &mut [(f64, bool)]) -> f64 {
 mod tests {
     use super::*;
     use crate::mapping::Clamp;
+
+    #[test]
+    fn the_wrong_cells_are_the_ones_the_rates_count() {
+        // A row of ten cells, truly occupied from x = 6 on; the map calls
+        // x = 2 occupied, x = 7 free, leaves x = 8 unknown and x = 9 absent.
+        let (mut truth, mut map) = (Octree::new(0.1), Octree::new(0.1));
+        let mut observable = FxHashSet::default();
+        let key = |x: u16| Key([32768 + x, 32768, 32768]);
+        for x in 0..10u16 {
+            let occupied = x >= 6;
+            let (lo, hi) = (Clamp::OCTOMAP.min, Clamp::OCTOMAP.max);
+            truth.update(&key(x), if occupied { hi } else { lo }, Clamp::OCTOMAP);
+            observable.insert(key(x).morton());
+            let called = match x {
+                2 => Some(1.0),
+                7 => Some(-1.0),
+                8 => Some(0.05),
+                9 => None,
+                _ if occupied => Some(1.0),
+                _ => Some(-1.0),
+            };
+            if let Some(l) = called {
+                map.update(&key(x), l, Clamp::OCTOMAP);
+            }
+        }
+        let wrong = wrong_cells(&map, &truth, &observable);
+        let listed: Vec<(u16, CellError)> = wrong
+            .iter()
+            .map(|w| (w.key.0[0] - 32768, w.error))
+            .collect();
+        assert_eq!(
+            listed,
+            [(2, CellError::FalseOccupied), (7, CellError::FalseFree)]
+        );
+        assert_eq!((wrong[0].log_odds, wrong[1].log_odds), (1.0, -1.0));
+        let s = score_map(&map, &truth, &observable);
+        assert_eq!(s.false_free_rate, 1.0 / 4.0);
+        assert_eq!(s.false_occupied_rate, 1.0 / 6.0);
+    }
 
     #[test]
     fn roc_auc_of_known_orders() {

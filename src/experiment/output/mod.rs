@@ -6,3 +6,4 @@ pub mod export;
 pub mod folder_readme;
 pub mod report;
 pub mod scan_files;
+pub mod wrong_cells;

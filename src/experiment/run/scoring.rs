@@ -6,7 +6,7 @@
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::{voxelise_within, KeyBox};
 use crate::eval::observable::{check_mask_steps, observable_along, SeenRay};
-use crate::eval::scores::score_map;
+use crate::eval::scores::{score_map, wrong_cells, WrongCell};
 use crate::experiment::run::runner::{observable, run_truth};
 use crate::experiment::study::metrics::{Measured, RunRow};
 use crate::experiment::{simulate, Experiment};
@@ -15,11 +15,24 @@ use crate::mapping::scan_graph::ScanNode;
 use crate::mapping::Octree;
 use crate::sim::scene::Scene;
 
-/// Whose row a score is: the sweep cell, the seed and the method's name.
+/// Whose row a score is: the sweep cell, the seed and the method's name;
+/// and whether the cells the map calls wrongly are listed too.
 struct RowOf<'a> {
     cell: String,
     seed: u64,
     name: &'a str,
+    list_wrong: bool,
+}
+
+/// A map scored: its runs.csv row, and (when asked for) the scored cells it
+/// calls wrongly ([`wrong_cells`]).
+#[derive(Clone, Debug)]
+pub struct Scored {
+    /// The row.
+    pub row: RunRow,
+    /// The false-free and false-occupied cells, in Morton order (empty
+    /// unless asked for).
+    pub wrong: Vec<WrongCell>,
 }
 
 /// The row of `map` scored against `truth` over `observable`.
@@ -27,8 +40,8 @@ fn row_of(
     map: &Octree,
     truth: &Octree,
     observable: &rustc_hash::FxHashSet<u64>,
-    RowOf { cell, seed, name }: RowOf,
-) -> RunRow {
+    whose: RowOf,
+) -> Scored {
     let scores = score_map(map, truth, observable);
     let stats = map.stats();
     let measured = Measured {
@@ -37,7 +50,21 @@ fn row_of(
         nees_point: f64::NAN,
         stats: &stats,
     };
-    RunRow::new(cell, seed, name, map.resolution(), &measured)
+    let wrong = if whose.list_wrong {
+        wrong_cells(map, truth, observable)
+    } else {
+        Vec::new()
+    };
+    Scored {
+        row: RunRow::new(
+            whose.cell,
+            whose.seed,
+            whose.name,
+            map.resolution(),
+            &measured,
+        ),
+        wrong,
+    }
 }
 
 /// Refuses a map whose resolution is not `wanted`, saying what to do.
@@ -58,12 +85,14 @@ fn check_map_resolution(map: &Octree, wanted: f64, what: &str) -> Result<()> {
 /// be in the run's map frame (the scene frame shifted by
 /// `Experiment::map_offset`, which `sigmap export` applies) at the
 /// experiment's resolution; another resolution is refused.
+/// With `list_wrong`, the cells it calls wrongly are listed too.
 pub fn score_external(
     experiment: &Experiment,
     seed: u64,
     map: &Octree,
     name: &str,
-) -> Result<RunRow> {
+    list_wrong: bool,
+) -> Result<Scored> {
     check_map_resolution(map, experiment.resolution(), "the experiment's")?;
     experiment.check_truth_cost()?;
     let run = simulate(experiment, seed, |_| {})?;
@@ -75,9 +104,15 @@ pub fn score_external(
         &KeyBox::spanning(observable.iter().copied()),
     );
     let cell = Experiment::cell_label(experiment.cell());
-    let mut row = row_of(map, &truth, &observable, RowOf { cell, seed, name });
-    row.resolution = experiment.resolution();
-    Ok(row)
+    let whose = RowOf {
+        cell,
+        seed,
+        name,
+        list_wrong,
+    };
+    let mut scored = row_of(map, &truth, &observable, whose);
+    scored.row.resolution = experiment.resolution();
+    Ok(scored)
 }
 
 /// The rays of recorded scans as the observable mask takes them: from each
@@ -123,7 +158,8 @@ pub fn score_against_scene(
     nodes: &[ScanNode],
     max_range: Option<f64>,
     name: &str,
-) -> Result<RunRow> {
+    list_wrong: bool,
+) -> Result<Scored> {
     scene.check_resolution(map.resolution())?;
     let steps: f64 = recorded_rays(nodes, max_range)
         .map(|ray| (ray.end - ray.origin).norm() / map.resolution())
@@ -137,6 +173,7 @@ pub fn score_against_scene(
         cell: String::new(),
         seed: 0,
         name,
+        list_wrong,
     };
     Ok(row_of(map, &truth, &observable, whose))
 }

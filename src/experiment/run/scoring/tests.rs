@@ -40,8 +40,10 @@ fn an_exact_run_scored_against_its_scene_and_scans_gives_the_run_row() {
             &nodes,
             Some(experiment.scanner().max_range),
             method.as_str(),
+            false,
         )
-        .unwrap();
+        .unwrap()
+        .row;
         for name in [
             "observable_cells",
             "occupied_cells",
@@ -80,8 +82,10 @@ fn an_exact_run_scored_against_its_scene_and_scans_gives_the_run_row() {
         &nodes,
         Some(experiment.scanner().max_range),
         "ray_update",
+        false,
     )
-    .unwrap();
+    .unwrap()
+    .row;
     assert!(
         row.get("f1") < rows[ray_update].get("f1") - 0.1,
         "{} vs {}",
