@@ -583,13 +583,7 @@ fn score_lists_the_cells_its_rates_count() {
 #[test]
 #[ignore = "needs python3 with plyfile (pip install plyfile); .ci/run runs it"]
 fn errors_ply_reads_in_an_independent_reader() {
-    let probe = std::process::Command::new("python3")
-        .args(["-c", "import plyfile"])
-        .output();
-    assert!(
-        probe.is_ok_and(|o| o.status.success()),
-        "python3 with plyfile not found (pip install plyfile; `bash .ci/run` does)"
-    );
+    common::require_plyfile();
     let dir = tempfile::tempdir().unwrap();
     let (csv, _, _) = score_with_errors(dir.path());
     let script = "import sys; from plyfile import PlyData\n\

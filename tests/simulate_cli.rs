@@ -243,13 +243,7 @@ fn usage_errors_and_help() {
 #[test]
 #[ignore = "needs python3 with plyfile (pip install plyfile); .ci/run runs it"]
 fn ply_reads_in_an_independent_reader() {
-    let probe = Command::new("python3")
-        .args(["-c", "import plyfile"])
-        .output();
-    assert!(
-        probe.is_ok_and(|o| o.status.success()),
-        "python3 with plyfile not found (pip install plyfile; `bash .ci/run` does)"
-    );
+    common::require_plyfile();
     let tmp = tempfile::tempdir().unwrap();
     simulate_quickstart(tmp.path(), &[]);
     let ply = tmp.path().join("vp_000.ply");

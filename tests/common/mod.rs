@@ -57,6 +57,19 @@ pub fn tool_ok(command: &mut Command) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// Fails, saying how to get it, unless python3 with `plyfile` runs (the
+/// independent PLY reader of the ignored tests; `.ci/run` installs it).
+#[allow(dead_code)] // not every test file reads a PLY
+pub fn require_plyfile() {
+    let probe = Command::new("python3")
+        .args(["-c", "import plyfile"])
+        .output();
+    assert!(
+        probe.is_ok_and(|o| o.status.success()),
+        "python3 with plyfile not found (pip install plyfile; `bash .ci/run` does)"
+    );
+}
+
 /// Simulates the quickstart into `dir` and checks it succeeded.
 #[allow(dead_code)] // not every test file simulates
 pub fn simulate_quickstart(dir: &std::path::Path, extra: &[&str]) {
