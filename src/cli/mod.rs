@@ -10,6 +10,7 @@ mod export;
 mod ground_truth;
 mod map;
 mod opdf;
+mod parse;
 mod propagate;
 mod regress;
 mod run;
@@ -19,6 +20,10 @@ mod simulate;
 use crate::error::{Error, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use parse::{
+    method_parser, parse_point, parse_pose, parse_shard, parse_tasks, pooling_parser, risk_parser,
+};
+pub(crate) use parse::{resolution_arg, RiskArg};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
@@ -386,31 +391,6 @@ pub(crate) struct PropagateArgs {
     out: Option<PathBuf>,
 }
 
-fn parse_shard(text: &str) -> std::result::Result<(usize, usize), String> {
-    let (i, n) = text
-        .split_once('/')
-        .ok_or("expected i/n, for example 2/4")?;
-    let (i, n): (usize, usize) = (
-        i.trim()
-            .parse()
-            .map_err(|_| format!("'{i}' is not a shard number"))?,
-        n.trim()
-            .parse()
-            .map_err(|_| format!("'{n}' is not a shard count"))?,
-    );
-    if n == 0 || i == 0 || i > n {
-        return Err(format!("shard {i}/{n} is out of range: use 1 <= i <= n"));
-    }
-    Ok((i, n))
-}
-
-/// `--method`: one of the method names, listed in `--help`.
-fn method_parser() -> impl clap::builder::TypedValueParser<Value = crate::mapping::Method> {
-    use clap::builder::TypedValueParser as _;
-    let names = crate::mapping::Method::ALL.map(crate::mapping::Method::as_str);
-    clap::builder::PossibleValuesParser::new(names).try_map(|name| name.parse())
-}
-
 /// The line that says why the defaults' surface samples between beams are
 /// off for `experiment`, if they are (docs/math.md §5.7).
 pub(crate) fn samples_note(experiment: &crate::experiment::Experiment) -> Option<String> {
@@ -421,52 +401,6 @@ pub(crate) fn samples_note(experiment: &crate::experiment::Experiment) -> Option
              sensor steps to have them)"
         )
     })
-}
-
-/// `--risk`: a level, or `off` (`None`).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct RiskArg(pub(crate) Option<f64>);
-
-fn risk_parser(text: &str) -> std::result::Result<RiskArg, String> {
-    if text == "off" {
-        return Ok(RiskArg(None));
-    }
-    match text.parse::<f64>() {
-        Ok(level) => Ok(RiskArg(Some(level))),
-        Err(_) => Err(format!("'{text}': use a probability up to 0.5, or off")),
-    }
-}
-
-/// `--beam-pooling`: off, faces or windows, listed in `--help`.
-fn pooling_parser() -> impl clap::builder::TypedValueParser<Value = crate::mapping::pooling::Pooling>
-{
-    use clap::builder::TypedValueParser as _;
-    clap::builder::PossibleValuesParser::new(["off", "faces", "windows"]).try_map(|name| {
-        crate::mapping::pooling::Pooling::from_name(&name)
-            .ok_or_else(|| format!("'{name}': use faces, windows or off"))
-    })
-}
-
-fn parse_pose(text: &str) -> std::result::Result<[f64; 6], String> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
-        .collect::<std::result::Result<_, _>>()?;
-    match <[f64; 6]>::try_from(values.as_slice()) {
-        Ok(pose) if pose.iter().all(|v| v.is_finite()) => Ok(pose),
-        _ => Err("expected six finite numbers x,y,z,roll,pitch,yaw (m, rad)".into()),
-    }
-}
-
-fn parse_point(text: &str) -> std::result::Result<[f64; 3], String> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
-        .collect::<std::result::Result<_, _>>()?;
-    match values.as_slice() {
-        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok([*x, *y, *z]),
-        _ => Err("expected three finite numbers x,y,z".into()),
-    }
 }
 
 /// Runs `f` on a rayon pool of `threads` workers (0: one per core).
@@ -485,34 +419,12 @@ pub(crate) fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send
     Ok(pool.install(f))
 }
 
-/// A `--resolution` argument, checked against [`RESOLUTIONS`](crate::mapping::octree::RESOLUTIONS).
 /// An error of a sweep cell the experiment does not have names `--cell`.
 pub(crate) fn cell_flag(e: Error) -> Error {
     if e.to_string().contains("sweep cells (0 to") {
         e.context("--cell: ")
     } else {
         e
-    }
-}
-
-/// `--tasks`: between 1 and [`crate::experiment::study::cluster::MAX_TASKS`].
-fn parse_tasks(text: &str) -> std::result::Result<usize, String> {
-    let max = crate::experiment::study::cluster::MAX_TASKS;
-    match text.parse::<usize>() {
-        Ok(n) if (1..=max).contains(&n) => Ok(n),
-        _ => Err(format!(
-            "{text}: a submission has between 1 and {max} tasks"
-        )),
-    }
-}
-
-pub(crate) fn resolution_arg(resolution: f64) -> Result<f64> {
-    if crate::mapping::octree::RESOLUTIONS.contains(&resolution) {
-        Ok(resolution)
-    } else {
-        Err(Error::Usage(
-            "--resolution must be between 0.001 and 1 m".into(),
-        ))
     }
 }
 
