@@ -779,6 +779,25 @@ fn the_quickstart_explains_itself() {
     );
     let report = std::fs::metadata(out.join("report.html")).unwrap().len();
     assert!(report < 500_000, "report.html is {report} bytes");
+    // Each map's error cloud holds exactly the cells of its seed-1 rates.
+    let rows: Vec<RunRow> = csv::Reader::from_path(out.join("runs.csv"))
+        .unwrap()
+        .deserialize()
+        .map(|r| r.unwrap())
+        .collect();
+    for method in ["blind", "unscented", "ray_update"] {
+        let row = rows
+            .iter()
+            .find(|r| r.seed == 1 && r.method == method)
+            .unwrap();
+        let (occupied, observable) = (row.get("occupied_cells"), row.get("observable_cells"));
+        let wrong = row.get("false_free_rate") * occupied
+            + row.get("false_occupied_rate") * (observable - occupied);
+        let ply = std::fs::read(out.join(format!("errors_{method}.ply"))).unwrap();
+        let header = String::from_utf8_lossy(&ply[..ply.len().min(600)]).into_owned();
+        let count = format!("element vertex {}\n", wrong.round());
+        assert!(header.contains(&count), "{method}: {count:?} in {header}");
+    }
     let again = sigmap(&args);
     let stderr = String::from_utf8_lossy(&again.stderr);
     assert!(

@@ -54,17 +54,15 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     if !args.run.quiet {
         print_headline(&outcome.experiment, &outcome.summary, outcome.runs);
         print_paired(&outcome.experiment, &outcome.paired);
-        let maps: Vec<String> = outcome
-            .experiment
-            .methods()
-            .iter()
-            .map(|m| format!("map_{m}.bt"))
-            .collect();
+        let methods = outcome.experiment.methods();
+        let maps: Vec<String> = methods.iter().map(|m| format!("map_{m}.bt")).collect();
+        let errors: Vec<String> = methods.iter().map(|m| format!("errors_{m}.ply")).collect();
         eprintln!(
-            "wrote {}/runs.csv, summary.csv, paired.csv, timings.csv, {}, report.html and \
+            "wrote {}/runs.csv, summary.csv, paired.csv, timings.csv, {}, {}, report.html and \
              README.md (what each file holds)",
             outcome.out.display(),
-            maps.join(", ")
+            maps.join(", "),
+            errors.join(", ")
         );
     }
     Ok(())

@@ -76,6 +76,7 @@ const FILES: &str = "## Files\n\n\
 | `paired.csv` | per cell, method and metric, the method against the reference seed by seed: `n`, mean difference (method − reference), 95% interval, verdict `better` / `worse` / `within_noise` by the metric's direction; then each method against itself at a sweep axis's `reference` value (the row's `reference_cell`) |\n\
 | `timings.csv` | seconds to simulate, model and score each run (they vary from run to run) |\n\
 | `map_<method>.bt` | the first run's map of each method (OctoMap binary tree; open with octovis) |\n\
+| `errors_<method>.ply` | the cells the first run's map of each method calls wrongly, the cells of its false-free (red) and false-occupied (orange) rates in runs.csv: a point cloud to open beside the map (CloudCompare, MeshLab) |\n\
 | `slice.svg` | a horizontal slice through the first run's maps: each cell's class against the truth |\n\
 | `coverage.svg`, `scores.svg`, `score_<metric>.svg`, `safety.svg` | the charts (the sweep charts with a sweep, the safety curve when ε is swept) |\n\
 | `report.html` | all of the above on one self-contained page |\n\

@@ -94,6 +94,8 @@ pub struct SeedOutcome {
     pub truth: Octree,
     /// The cells it was computed over: the box its observable mask spans.
     pub region: KeyBox,
+    /// The scored cells (Morton codes): the observable mask.
+    pub observable: FxHashSet<u64>,
 }
 
 /// Where the run's registration places the scene in the map frame:
@@ -184,6 +186,7 @@ pub fn run_seed(experiment: &Experiment, seed: u64) -> Result<SeedOutcome> {
         maps,
         truth,
         region: seed_run.region,
+        observable: seed_run.observable,
     })
 }
 

@@ -5,8 +5,10 @@
 //! merge never reuses results of other inputs; docs/architecture.md).
 
 use crate::error::{Error, Result};
-use crate::eval::ground_truth::KeyBox;
+use crate::eval::scores::wrong_cells;
 use crate::experiment::output::folder_readme::write_folder_readme;
+use crate::experiment::output::wrong_cells::{write_wrong_cells, ErrorsFormat};
+use crate::experiment::run::runner::SeedOutcome;
 use crate::experiment::run::runner::{read_rows, run_seed, write_rows, RunRow, TimingRow};
 use crate::experiment::study::journal::{
     fingerprint, journal_record, read_journal, Inputs, Wanted, FINGERPRINT_SCHEME,
@@ -21,7 +23,6 @@ use crate::experiment::{
     output::report,
 };
 use crate::mapping::octomap_io::write_octree;
-use crate::mapping::Octree;
 use rayon::prelude::*;
 use std::collections::BTreeSet;
 use std::io::Write;
@@ -115,13 +116,7 @@ pub fn run_experiment(
         .map(|&(c, seed)| {
             let outcome = run_seed(&cells[c], seed)?;
             if (c, seed) == first {
-                write_first_maps(
-                    &out,
-                    &cells[0],
-                    seed,
-                    (&outcome.truth, &outcome.region),
-                    &outcome.maps,
-                )?;
+                write_first_maps(&out, &cells[0], seed, &outcome)?;
             }
             journal.append(&outcome.rows, &outcome.timings)?;
             finished(outcome.rows.len());
@@ -251,20 +246,23 @@ struct Finished {
     done: BTreeSet<(String, u64)>,
 }
 
-/// The first run's maps (`map_<method>.bt`) and the slice through them and
-/// the truth (`slice.svg`).
-fn write_first_maps(
-    out: &Path,
-    cell: &Experiment,
-    seed: u64,
-    (truth, region): (&Octree, &KeyBox),
-    maps: &[Octree],
-) -> Result<()> {
+/// The first run's maps (`map_<method>.bt`), the cells each calls wrongly
+/// (`errors_<method>.ply`: the cells of its false-free and false-occupied
+/// rates in runs.csv) and the slice through them and the truth
+/// (`slice.svg`).
+fn write_first_maps(out: &Path, cell: &Experiment, seed: u64, outcome: &SeedOutcome) -> Result<()> {
+    let (truth, region, maps) = (&outcome.truth, &outcome.region, &outcome.maps);
     for (method, map) in cell.methods().iter().zip(maps) {
         write_octree(
             &out.join(format!("map_{method}.bt")),
             map,
             cell.map().clamp(),
+        )?;
+        write_wrong_cells(
+            &out.join(format!("errors_{method}.ply")),
+            ErrorsFormat::Ply,
+            map,
+            &wrong_cells(map, truth, &outcome.observable),
         )?;
     }
     let offset = cell.map_offset(seed);

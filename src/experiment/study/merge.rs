@@ -123,14 +123,17 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let (study, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
     write_manifest(&out, &experiment, &expected, 1, 1)?;
-    // The first run's maps and slice live in the shard that ran it.
+    // The first run's maps, error clouds and slice live in the shard that
+    // ran it.
     for dir in shards {
         for entry in std::fs::read_dir(dir)
             .map_err(|e| Error::io(dir, e))?
             .flatten()
         {
             let name = entry.file_name().to_string_lossy().into_owned();
-            if name == "slice.svg" || (name.starts_with("map_") && name.ends_with(".bt")) {
+            let first_run = (name.starts_with("map_") && name.ends_with(".bt"))
+                || (name.starts_with("errors_") && name.ends_with(".ply"));
+            if name == "slice.svg" || first_run {
                 std::fs::copy(entry.path(), out.join(&name))
                     .map_err(|e| Error::io(entry.path(), e))?;
             }
