@@ -438,8 +438,13 @@ fn shards_merge_into_the_one_machine_result() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    // The report too: the same summary, charts, slice and fingerprint.
-    for file in ["runs.csv", "summary.csv", "paired.csv", "report.html"] {
+    // The report too: the same summary, charts, slice and fingerprint; and
+    // the first run's map and error cloud, from the shard that ran it.
+    let first_run = ["map_unscented.bt", "errors_unscented.ply"];
+    for file in ["runs.csv", "summary.csv", "paired.csv", "report.html"]
+        .into_iter()
+        .chain(first_run)
+    {
         assert_eq!(read(&merged.join(file)), read(&whole.join(file)), "{file}");
     }
     // A missing shard, an out-of-range shard, and a shard of another experiment are refused.
