@@ -202,14 +202,27 @@ fn shared_key(panels: &[Panel]) -> Option<Vec<String>> {
     Some(names)
 }
 
-/// The strip below the panels that names `key`: entries of a common width
-/// in rows across `width` pixels. Returns its height and entries per row.
-fn key_layout(key: &[String], width: u32) -> (u32, usize) {
-    let longest = key.iter().map(|n| n.chars().count()).max().unwrap_or(0) as u32;
-    let entry = KEY_SWATCH + 7 * longest + 24;
-    let per_row = (width.saturating_sub(20) / entry.max(1)).max(1) as usize;
-    let rows = key.len().div_ceil(per_row) as u32;
-    (20 * rows + 20, per_row)
+/// The strip below the panels that names a figure's lines: entries of a
+/// common width (px), `per_row` to a row, and its height (px).
+struct KeyLayout {
+    entry: u32,
+    per_row: usize,
+    height: u32,
+}
+
+impl KeyLayout {
+    /// The strip of `key` across `width` pixels.
+    fn of(key: &[String], width: u32) -> Self {
+        let longest = key.iter().map(|n| n.chars().count()).max().unwrap_or(0) as u32;
+        let entry = KEY_SWATCH + 7 * longest + 24;
+        let per_row = (width.saturating_sub(20) / entry).max(1) as usize;
+        let rows = key.len().div_ceil(per_row) as u32;
+        Self {
+            entry,
+            per_row,
+            height: 20 * rows + 20,
+        }
+    }
 }
 
 /// Pixels of a key entry's line sample and the gap after it.
@@ -218,54 +231,51 @@ const KEY_SWATCH: u32 = 34;
 fn draw_panels(svg: &mut String, path: &Path, columns: usize, panels: &[Panel]) -> Result<()> {
     let rows = panels.len().div_ceil(columns).max(1);
     let width = 560 * columns as u32;
-    let key = shared_key(panels);
-    let (strip, per_row) = key.as_deref().map_or((0, 1), |k| key_layout(k, width));
+    let key = shared_key(panels).map(|key| {
+        let layout = KeyLayout::of(&key, width);
+        (key, layout)
+    });
+    let strip = key.as_ref().map_or(0, |(_, layout)| layout.height);
     let size = (width, 420 * rows as u32 + strip);
     let root = SVGBackend::with_string(svg, size).into_drawing_area();
     let err = |e: &dyn std::fmt::Display| Error::input(path, format!("cannot draw the chart: {e}"));
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let (plots, below) = root.split_vertically(420 * rows as u32);
     let areas = plots.split_evenly((rows, columns));
+    let names = key.as_ref().map(|(names, _)| &names[..]);
     for (area, panel) in areas.iter().zip(panels) {
-        draw_panel(area, panel, key.as_deref()).map_err(|e| err(&e))?;
+        draw_panel(area, panel, names).map_err(|e| err(&e))?;
     }
-    if let Some(key) = &key {
-        draw_key(&below, key, per_row).map_err(|e| err(&e))?;
+    if let Some((names, layout)) = &key {
+        draw_key(&below, names, layout).map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))
 }
 
-/// The shared legend: each name after a sample of its line, `per_row` to a
-/// row.
+/// The shared legend: each name after a sample of its line (two dashes
+/// for a dashed one), in `layout`'s rows.
 fn draw_key(
     strip: &DrawingArea<SVGBackend, Shift>,
     key: &[String],
-    per_row: usize,
+    layout: &KeyLayout,
 ) -> std::result::Result<(), String> {
     let text = |e: &dyn std::fmt::Display| e.to_string();
-    let longest = key.iter().map(|n| n.chars().count()).max().unwrap_or(0) as i32;
-    let entry = (KEY_SWATCH as i32) + 7 * longest + 24;
     let style = ("sans-serif", 13).into_font().color(&BLACK);
     for (k, name) in key.iter().enumerate() {
         let (x, y) = (
-            20 + entry * (k % per_row) as i32,
-            10 + 20 * (k / per_row) as i32,
+            20 + (layout.entry as usize * (k % layout.per_row)) as i32,
+            10 + 20 * (k / layout.per_row) as i32,
         );
         let line = LineStyle::of(k);
-        let sample: Vec<(i32, i32)> = if line.dashed {
-            vec![(x, y + 8), (x + 10, y + 8)]
+        let dashes: &[(i32, i32)] = if line.dashed {
+            &[(0, 10), (16, 26)]
         } else {
-            vec![(x, y + 8), (x + 26, y + 8)]
+            &[(0, 26)]
         };
-        strip
-            .draw(&PathElement::new(sample, line.colour.stroke_width(2)))
-            .map_err(|e| text(&e))?;
-        if line.dashed {
+        for &(from, to) in dashes {
+            let dash = vec![(x + from, y + 8), (x + to, y + 8)];
             strip
-                .draw(&PathElement::new(
-                    vec![(x + 16, y + 8), (x + 26, y + 8)],
-                    line.colour.stroke_width(2),
-                ))
+                .draw(&PathElement::new(dash, line.colour.stroke_width(2)))
                 .map_err(|e| text(&e))?;
         }
         strip

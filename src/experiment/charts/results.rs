@@ -183,13 +183,34 @@ fn lines_over_cells(
     out
 }
 
-/// A panel's title: the chart's, and the method when the figure has a
-/// panel per method.
-fn titled(title: &str, method: Option<&String>) -> String {
-    match method {
-        Some(method) => format!("{title}: {method}"),
-        None => title.to_string(),
-    }
+/// The panels' titles of a row of [`by_method`]: `title`, and the method
+/// when the row has a panel per method.
+fn titles(title: &str, row: &[MethodPanel]) -> Vec<String> {
+    row.iter()
+        .map(|(method, _)| match method {
+            Some(method) => format!("{title}: {method}"),
+            None => title.to_string(),
+        })
+        .collect()
+}
+
+/// The panels of a row of [`by_method`] with their `titles`.
+fn row_panels<'a>(
+    row: &'a [MethodPanel],
+    titles: &'a [String],
+    (x_label, y_label): (&'a str, &'a str),
+    log_y: bool,
+) -> impl Iterator<Item = Panel<'a>> {
+    row.iter()
+        .zip(titles)
+        .map(move |((_, series), title)| Panel {
+            title,
+            x_label,
+            y_label,
+            log_x: false,
+            log_y,
+            series,
+        })
 }
 
 /// `scores.svg`: F1, false-free rate, Brier and ANEES against the first sweep
@@ -217,23 +238,14 @@ pub fn plot_scores(
         .iter()
         .map(|(m, title, log)| (panels_for(m), *title, *log))
         .collect();
-    let titles: Vec<Vec<String>> = rows
+    let names: Vec<Vec<String>> = rows
         .iter()
-        .map(|(row, title, _)| row.iter().map(|(m, _)| titled(title, m.as_ref())).collect())
+        .map(|(row, title, _)| titles(title, row))
         .collect();
     let list: Vec<Panel> = rows
         .iter()
-        .zip(&titles)
-        .flat_map(|((row, title, log), names)| {
-            row.iter().zip(names).map(|((_, series), name)| Panel {
-                title: name,
-                x_label: &axis.label,
-                y_label: title,
-                log_x: false,
-                log_y: *log,
-                series,
-            })
-        })
+        .zip(&names)
+        .flat_map(|((row, title, log), names)| row_panels(row, names, (&axis.label, title), *log))
         .collect();
     let columns = rows.iter().map(|(row, _, _)| row.len()).max().unwrap_or(1);
     if columns > 1 {
@@ -246,22 +258,9 @@ pub fn plot_scores(
     let dir = path.parent().unwrap_or(Path::new("."));
     for metric in crate::experiment::study::metrics::summarised().map(|m| m.name) {
         let row = panels_for(metric);
-        let names: Vec<String> = row
-            .iter()
-            .map(|(m, _)| titled(metric, m.as_ref()))
-            .collect();
-        let list: Vec<Panel> = row
-            .iter()
-            .zip(&names)
-            .map(|((_, series), name)| Panel {
-                title: name,
-                x_label: &axis.label,
-                y_label: metric,
-                log_x: false,
-                log_y: metric == "anees",
-                series,
-            })
-            .collect();
+        let names = titles(metric, &row);
+        let list: Vec<Panel> =
+            row_panels(&row, &names, (&axis.label, metric), metric == "anees").collect();
         let chart = dir.join(format!("score_{metric}.svg"));
         panels(&chart, &list)?;
         written.push(chart);
@@ -316,19 +315,9 @@ pub fn plot_safety(
     }
     let title = "safety curve: false-free rate vs precision as the risk level varies";
     let row = by_method(lines);
-    let names: Vec<String> = row.iter().map(|(m, _)| titled(title, m.as_ref())).collect();
-    let list: Vec<Panel> = row
-        .iter()
-        .zip(&names)
-        .map(|((_, series), name)| Panel {
-            title: name,
-            x_label: "precision",
-            y_label: "false-free rate (lower is safer)",
-            log_x: false,
-            log_y: false,
-            series,
-        })
-        .collect();
+    let names = titles(title, &row);
+    let labels = ("precision", "false-free rate (lower is safer)");
+    let list: Vec<Panel> = row_panels(&row, &names, labels, false).collect();
     panels(path, &list)?;
     Ok(vec![path.to_path_buf()])
 }
