@@ -159,3 +159,40 @@ fn errors_ply_reads_in_an_independent_reader() {
     };
     assert_eq!((fields[2], fields[3]), (red, green));
 }
+
+/// `--errors` never replaces a file it did not write: a file of the user's
+/// at its path (CSV or PLY), or the `--csv` file of the same call, is
+/// refused (exit 2) and left as it was; a list it wrote is replaced.
+#[test]
+fn errors_never_replaces_a_file_it_did_not_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    score_with_errors(d);
+    let map = path(&d.join("map.ot"));
+    let score = |extra: &[&str]| {
+        let args = ["score", &map, "experiments/quickstart.toml", "-q"];
+        sigmap(&[&args[..], extra].concat())
+    };
+    for name in ["mine.csv", "mine.ply"] {
+        let mine = d.join(name);
+        std::fs::write(&mine, "my own points\n").unwrap();
+        let refused = score(&["--errors", &path(&mine)]);
+        let stderr = String::from_utf8_lossy(&refused.stderr);
+        assert_eq!(refused.status.code(), Some(2), "{stderr}");
+        assert!(
+            stderr.contains(name) && stderr.contains("not a list"),
+            "{stderr}"
+        );
+        assert_eq!(std::fs::read_to_string(&mine).unwrap(), "my own points\n");
+    }
+    let both = path(&d.join("both.csv"));
+    let refused = score(&["--errors", &both, "--csv", &both]);
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(!d.join("both.csv").exists());
+    // The lists written before are replaced by the same lists.
+    let before = std::fs::read(d.join("errors.ply")).unwrap();
+    for list in ["errors.csv", "errors.ply"] {
+        assert!(score(&["--errors", &path(&d.join(list))]).status.success());
+    }
+    assert_eq!(std::fs::read(d.join("errors.ply")).unwrap(), before);
+}

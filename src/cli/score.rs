@@ -19,6 +19,11 @@ use crate::sim::scene::Scene;
 /// `sigmap score`.
 pub(crate) fn run(args: ScoreArgs) -> Result<()> {
     check_roles(&args)?;
+    if args.errors.is_some() && args.errors == args.csv {
+        return Err(Error::Usage(
+            "--errors and --csv name the same file: the list would replace the rows".into(),
+        ));
+    }
     let errors = args.errors.as_deref().map(ErrorsFormat::of).transpose()?;
     let list_wrong = errors.is_some();
     let name = crate::files::stem(&args.map);

@@ -20,19 +20,54 @@ pub enum ErrorsFormat {
 
 impl ErrorsFormat {
     /// The format `path`'s extension names; an error saying which ones
-    /// exist otherwise (before anything is scored).
+    /// exist otherwise, or when `path` holds a file that is not such a list
+    /// (it is never replaced), before anything is scored.
     pub fn of(path: &Path) -> Result<Self> {
-        match path.extension().and_then(|e| e.to_str()) {
-            Some(e) if e.eq_ignore_ascii_case("csv") => Ok(Self::Csv),
-            Some(e) if e.eq_ignore_ascii_case("ply") => Ok(Self::Ply),
-            _ => Err(Error::Usage(format!(
-                "--errors {}: name a .csv (a table of the cells) or a .ply (a coloured point \
-                 cloud) file",
+        let format = match path.extension().and_then(|e| e.to_str()) {
+            Some(e) if e.eq_ignore_ascii_case("csv") => Self::Csv,
+            Some(e) if e.eq_ignore_ascii_case("ply") => Self::Ply,
+            _ => {
+                return Err(Error::Usage(format!(
+                    "--errors {}: name a .csv (a table of the cells) or a .ply (a coloured \
+                     point cloud) file",
+                    path.display()
+                )))
+            }
+        };
+        if path.exists() && !format.wrote(path) {
+            return Err(Error::Usage(format!(
+                "--errors {}: the file exists and is not a list sigmap score --errors wrote; \
+                 it is left as it is: choose another file",
                 path.display()
-            ))),
+            )));
+        }
+        Ok(format)
+    }
+
+    /// How a file of this format begins.
+    fn opening(self) -> &'static str {
+        match self {
+            Self::Csv => CSV_HEADER,
+            Self::Ply => PLY_OPENING,
         }
     }
+
+    /// Whether the file at `path` begins as this format's lists do.
+    fn wrote(self, path: &Path) -> bool {
+        use std::io::Read as _;
+        let opening = self.opening().as_bytes();
+        let mut start = vec![0; opening.len()];
+        std::fs::File::open(path)
+            .and_then(|mut file| file.read_exact(&mut start))
+            .is_ok_and(|()| start == opening)
+    }
 }
+
+/// The CSV's header line.
+const CSV_HEADER: &str = "x,y,z,error,log_odds,probability\n";
+
+/// The PLY's first lines, up to what names it sigmap's.
+const PLY_OPENING: &str = "ply\nformat binary_little_endian 1.0\ncomment sigmap score --errors: ";
 
 /// The colour of a wrong cell in the PLY: false-free red, false-occupied
 /// orange (as in `slice.svg`).
@@ -53,7 +88,7 @@ pub fn write_wrong_cells(
 ) -> Result<()> {
     let bytes = match format {
         ErrorsFormat::Csv => {
-            let mut text = String::from("x,y,z,error,log_odds,probability\n");
+            let mut text = String::from(CSV_HEADER);
             for cell in cells {
                 let c = map.center(&cell.key, DEPTH);
                 let _ = writeln!(
@@ -71,9 +106,7 @@ pub fn write_wrong_cells(
         }
         ErrorsFormat::Ply => {
             let header = format!(
-                "ply\nformat binary_little_endian 1.0\n\
-                 comment sigmap score --errors: centres of the scored cells the map calls \
-                 wrongly, map frame\n\
+                "{PLY_OPENING}centres of the scored cells the map calls wrongly, map frame\n\
                  comment red: false-free (truly occupied, called free); orange: \
                  false-occupied (truly free, called occupied)\n\
                  comment resolution {:?}\nelement vertex {}\nproperty double x\n\
