@@ -437,6 +437,36 @@ fn score_against_a_scene_with_recorded_scans() {
 }
 
 #[test]
+fn a_malformed_file_is_blamed_on_the_file_not_on_a_flag_given_beside_it() {
+    // TOML's "unknown field" error lists every field, `interpolate_beams`
+    // and `risk` among them: it must not be reported as the flags' fault.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("typo.toml");
+    let text = std::fs::read_to_string(common::root().join("experiments/quickstart.toml")).unwrap();
+    std::fs::write(&path, format!("pose_error_scal = 1.0\n{text}")).unwrap();
+    let out = sigmap(&[
+        "map",
+        path.to_str().unwrap(),
+        "--interpolate-beams",
+        "off",
+        "--risk",
+        "off",
+        "--out",
+        dir.path().join("m.bt").to_str().unwrap(),
+    ]);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{message}");
+    assert!(
+        message.contains("typo.toml")
+            && message.contains("pose_error_scal")
+            && !message.contains("--interpolate-beams:")
+            && !message.contains("--risk:")
+            && message.lines().count() == 1,
+        "{message}"
+    );
+}
+
+#[test]
 fn risk_defaults_to_one_half_and_may_be_set_or_turned_off() {
     // The quickstart leaves `risk` to the default, 0.5 (docs/math.md §5.7):
     // `--risk 0.5` gives the same file, `--risk off` another, and a level

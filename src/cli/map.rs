@@ -59,9 +59,12 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
             ("risk", "--risk", args.risk.is_some()),
         ];
         let message = e.to_string();
+        // A file that does not parse lists every field it knows, the flags'
+        // among them: that error is the file's, not a flag's.
+        let parsed = !message.contains("malformed TOML");
         match given
             .iter()
-            .find(|(key, _, on)| *on && message.contains(key))
+            .find(|(key, _, on)| parsed && *on && message.contains(key))
         {
             Some((_, flag, _)) => e.context(format!("{flag}: ")),
             None => e,
