@@ -437,6 +437,61 @@ fn score_against_a_scene_with_recorded_scans() {
 }
 
 #[test]
+fn map_of_a_cell_and_seed_is_the_map_run_writes_for_them_in_its_grid_offset_frame() {
+    // The quickstart with a grid offset drawn per seed and a sweep whose
+    // first cell (scale 0) differs from the base (scale 1): `sigmap run`
+    // writes the map of its first run (cell 0, seed 2); `sigmap map --cell 0
+    // --seed 2` must write the same file, in the same (offset) map frame.
+    let dir = tempfile::tempdir().unwrap();
+    let file = common::portable_experiment(
+        "quickstart",
+        dir.path(),
+        &[
+            ("resolution = 0.01", "resolution = 0.02\ngrid_offset = true"),
+            ("seeds = [1, 2, 3]", "seeds = [2]"),
+            (
+                "methods = [\"blind\", \"unscented\", \"ray_update\"]",
+                "methods = [\"unscented\", \"ray_update\"]\n\n[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [0.0, 1.0]",
+            ),
+        ],
+    );
+    let results = dir.path().join("results");
+    common::ok(common::run_into(&file, &results, &[]));
+    for method in ["unscented", "ray_update"] {
+        let map = |extra: &[&str]| {
+            let out = dir.path().join(format!("{method}{}.bt", extra.len()));
+            let mut args = vec![
+                "map",
+                file.to_str().unwrap(),
+                "--method",
+                method,
+                "--seed",
+                "2",
+                "-q",
+                "--out",
+                out.to_str().unwrap(),
+            ];
+            args.extend_from_slice(extra);
+            sigmap_ok(&args);
+            std::fs::read(out).unwrap()
+        };
+        let written = std::fs::read(results.join(format!("map_{method}.bt"))).unwrap();
+        assert!(
+            map(&["--cell", "0"]) == written,
+            "{method}: not the run's map"
+        );
+        assert!(map(&[]) != written, "{method}: the base is not cell 0");
+    }
+    let out = sigmap(&["map", file.to_str().unwrap(), "--cell", "2"]);
+    let message = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{message}");
+    assert!(
+        message.contains("--cell: ") && message.contains("0 to 1"),
+        "{message}"
+    );
+}
+
+#[test]
 fn a_malformed_file_is_blamed_on_the_file_not_on_a_flag_given_beside_it() {
     // TOML's "unknown field" error lists every field, `interpolate_beams`
     // and `risk` among them: it must not be reported as the flags' fault.

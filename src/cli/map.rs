@@ -42,7 +42,8 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         methods: Some(vec![args.method]),
         grid_offset: None,
     };
-    let experiment = Experiment::load_with(experiment, &[], &overrides).map_err(|e| {
+    let cell = Experiment::cell_values(experiment, args.cell).map_err(super::cell_flag)?;
+    let experiment = Experiment::load_with(experiment, &cell, &overrides).map_err(|e| {
         // The library says which value is wrong; name the flag that gave it.
         let given = [
             (
@@ -93,16 +94,18 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
     })??;
     bar.finish_and_clear();
     let view = experiment.mapper_view();
+    // The run's map frame (the scene shifted by the seed's grid offset), as
+    // `sigmap run`, `export` and `score` have it.
+    let offset = experiment.map_offset(seed);
     if let Some(path) = &args.export_rays {
-        write_rays(path, &view, &run.scans)?;
+        write_rays(path, &view, &run.scans, &offset)?;
     }
     let start = Instant::now();
-    let origin = crate::geometry::Vector3::zeros();
     let tree = if args.method == Method::RegisteredTruth {
-        registered_truth(&experiment, &run.truth, resolution, &origin, &KeyBox::ALL)
+        registered_truth(&experiment, &run.truth, resolution, &offset, &KeyBox::ALL)
     } else {
         with_threads(args.run.threads, || {
-            build_map(&view, &run.scans, args.method, resolution, &origin)
+            build_map(&view, &run.scans, args.method, resolution, &offset)
         })??
     };
     let seconds = start.elapsed().as_secs_f64();

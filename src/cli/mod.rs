@@ -181,6 +181,11 @@ pub(crate) struct MapArgs {
     /// --scans 0.1, as graph2tree].
     #[arg(long, allow_negative_numbers = true)]
     resolution: Option<f64>,
+    /// Sweep cell (0-based, in the order of summary.csv) [default: the base
+    /// experiment]: with --seed, the map `sigmap run` builds for that cell
+    /// and seed.
+    #[arg(long, conflicts_with = "scans")]
+    cell: Option<usize>,
     /// Map file, .bt or .ot [default: results/<experiment>/map_<method>.bt;
     /// required with --scans].
     #[arg(long)]

@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::experiment::{Experiment, SimulatedRun};
-use crate::geometry::{Isometry3, Matrix6, Pose};
+use crate::geometry::{Isometry3, Matrix6, Pose, Vector3};
 use crate::mapping::measured::{pooled_ray_ends, ray_inputs_into};
 use crate::mapping::scan::{BeamStatus, MapperView, Scan};
 use crate::sim::scan::ScanTruth;
@@ -349,10 +349,11 @@ pub fn default_scan_dir(experiment: &Experiment) -> PathBuf {
 /// The rays OctoMap's `insertPointCloud` gets: per scan, the origin and the
 /// end points (no-return beams as points at twice the maximum range, which
 /// OctoMap truncates to free space); with `beam_pooling`, the pooled points,
-/// as sigmap's ray update inserts them. Little-endian:
+/// as sigmap's ray update inserts them; in the map frame, the scene frame
+/// shifted by `offset` (the run's grid offset). Little-endian:
 /// `"SIGMAPRAYS1\n"`, `f32` max range, `u32` scans; per scan `f32` origin x y z,
 /// `u32` n, n × `f32` x y z (benches/octomap/insert.cpp reads it).
-pub fn write_rays(path: &Path, view: &MapperView, scans: &[Scan]) -> Result<()> {
+pub fn write_rays(path: &Path, view: &MapperView, scans: &[Scan], offset: &Vector3) -> Result<()> {
     let mut out = b"SIGMAPRAYS1\n".to_vec();
     let max_range = view.max_range;
     out.extend_from_slice(&(max_range as f32).to_le_bytes());
@@ -361,13 +362,14 @@ pub fn write_rays(path: &Path, view: &MapperView, scans: &[Scan]) -> Result<()> 
     for (i, scan) in scans.iter().enumerate() {
         let layout = view.layouts.of(i);
         let pooled = pooled_ray_ends(view, layout, scan).map_err(Error::Usage)?;
-        let origin = ray_inputs_into(layout, scan, pooled.as_deref(), &mut hits, &mut misses);
+        let origin =
+            ray_inputs_into(layout, scan, pooled.as_deref(), &mut hits, &mut misses) + offset;
         for v in origin.iter() {
             out.extend_from_slice(&(*v as f32).to_le_bytes());
         }
         out.extend_from_slice(&((hits.len() + misses.len()) as u32).to_le_bytes());
         let far = misses.iter().map(|d| origin + d * (2.0 * max_range));
-        for p in hits.iter().copied().chain(far) {
+        for p in hits.iter().map(|h| h + offset).chain(far) {
             for v in p.iter() {
                 out.extend_from_slice(&(*v as f32).to_le_bytes());
             }

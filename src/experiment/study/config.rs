@@ -191,17 +191,24 @@ impl Experiment {
     /// Reads the experiment with its sweep cell number `cell` (0-based, in
     /// the order of [`Experiment::cells`]) applied; `None`: the base.
     pub fn load_cell_index(path: &Path, cell: Option<usize>) -> Result<Self> {
-        let base = Self::load(path)?;
-        let cells = base.cells();
-        match cell {
-            None => Ok(base),
-            Some(k) if k < cells.len() => Self::load_cell(path, &cells[k]),
-            Some(k) => Err(Error::Usage(format!(
+        Self::load_cell(path, &Self::cell_values(path, cell)?)
+    }
+
+    /// The values of the experiment's sweep cell number `cell` (0-based, in
+    /// the order of [`Experiment::cells`]), to load it with
+    /// ([`Experiment::load_with`]); `None`: none (the base experiment).
+    pub fn cell_values(path: &Path, cell: Option<usize>) -> Result<Vec<(String, SweepValue)>> {
+        let Some(k) = cell else {
+            return Ok(Vec::new());
+        };
+        let cells = Self::load(path)?.cells();
+        cells.get(k).cloned().ok_or_else(|| {
+            Error::Usage(format!(
                 "sweep cell {k}: the experiment has {} sweep cells (0 to {})",
                 cells.len(),
                 cells.len() - 1
-            ))),
-        }
+            ))
+        })
     }
 
     /// Reads the experiment with one sweep cell's values applied.
