@@ -482,6 +482,21 @@ fn map_of_a_cell_and_seed_is_the_map_run_writes_for_them_in_its_grid_offset_fram
         );
         assert!(map(&[]) != written, "{method}: the base is not cell 0");
     }
+    // Without --cell, a sweep's map says which experiment it is of.
+    let out = dir.path().join("base.bt");
+    let base = sigmap(&[
+        "map",
+        file.to_str().unwrap(),
+        "--resolution",
+        "0.05",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let note = String::from_utf8_lossy(&base.stderr);
+    assert!(
+        base.status.success() && note.contains("sweeps 2 cells") && note.contains("--cell K"),
+        "{note}"
+    );
     let out = sigmap(&["map", file.to_str().unwrap(), "--cell", "2"]);
     let message = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{message}");

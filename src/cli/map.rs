@@ -83,6 +83,16 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         let scene = experiment.scene();
         scene.check_truth_region(&scene.workspace, resolution, "the whole workspace")?;
     }
+    let cells = experiment.cells();
+    if args.cell.is_none() && cells.iter().any(|c| !c.is_empty()) && !args.run.quiet {
+        eprintln!(
+            "note: the experiment sweeps {} cells and this maps the base experiment (the file's \
+             own values); --cell K maps sweep cell K (0 to {}, in the order of summary.csv), as \
+             `sigmap run` does",
+            cells.len(),
+            cells.len() - 1
+        );
+    }
     if let Some(note) =
         super::samples_note(&experiment).filter(|_| args.method.builds_grids() && !args.run.quiet)
     {
