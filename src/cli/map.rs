@@ -59,14 +59,11 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
             ),
             ("risk", "--risk", args.risk.is_some()),
         ];
-        let message = e.to_string();
-        // A file that does not parse lists every field it knows, the flags'
-        // among them: that error is the file's, not a flag's.
-        let parsed = !message.contains("malformed TOML");
-        match given
-            .iter()
-            .find(|(key, _, on)| parsed && *on && message.contains(key))
-        {
+        // A value's error leads with its key (`risk = 0.7 must be …`); one
+        // that only names it (TOML's list of known fields) is the file's.
+        let led_by =
+            |key: &str| matches!(&e, Error::Input { message, .. } if message.starts_with(key));
+        match given.iter().find(|(key, _, on)| *on && led_by(key)) {
             Some((_, flag, _)) => e.context(format!("{flag}: ")),
             None => e,
         }
@@ -83,8 +80,8 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         let scene = experiment.scene();
         scene.check_truth_region(&scene.workspace, resolution, "the whole workspace")?;
     }
-    let cells = experiment.cells();
-    if args.cell.is_none() && cells.iter().any(|c| !c.is_empty()) && !args.run.quiet {
+    if args.cell.is_none() && !experiment.sweep().is_empty() && !args.run.quiet {
+        let cells = experiment.cells();
         eprintln!(
             "note: the experiment sweeps {} cells and this maps the base experiment (the file's \
              own values); --cell K maps sweep cell K (0 to {}, in the order of summary.csv), as \
