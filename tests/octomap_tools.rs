@@ -5,7 +5,10 @@
 use sigmap::mapping::octomap_io::{is_occupied, read_octree, write_octree};
 use sigmap::mapping::octree::{LOG_ODDS_HIT, LOG_ODDS_MISS};
 use sigmap::mapping::{Clamp, Key, Octree};
+use std::path::Path;
 use std::process::Command;
+
+mod common;
 
 /// Runs a command to success and returns what it printed (stdout + stderr).
 fn run(command: &mut Command) -> String {
@@ -104,14 +107,21 @@ fn octomap_reads_what_sigmap_writes() {
 /// `sigmap map` of the quickstart's first run with the ray update at
 /// `resolution`, written to `out`, with `extra` arguments.
 fn ray_update_map(resolution: &str, out: &std::path::Path, extra: &[&str]) {
+    ray_update_map_of(
+        Path::new("experiments/quickstart.toml"),
+        resolution,
+        out,
+        extra,
+    );
+}
+
+/// [`ray_update_map`] of the experiment `file`.
+fn ray_update_map_of(file: &Path, resolution: &str, out: &Path, extra: &[&str]) {
     run(Command::new(env!("CARGO_BIN_EXE_sigmap"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args([
-            "map",
-            "experiments/quickstart.toml",
-            "--method",
-            "ray_update",
-        ])
+        .arg("map")
+        .arg(file)
+        .args(["--method", "ray_update"])
         .args(["--resolution", resolution, "-q", "--out"])
         .arg(out)
         .args(extra));
@@ -132,17 +142,32 @@ fn ray_update_builds_the_same_tree_as_octomap() {
         .args(["-O2", "-std=c++17", source, "-o"])
         .arg(&exe)
         .args(["-loctomap", "-loctomath"]));
+    // The quickstart as shipped, with pooling off and on, and with a grid
+    // offset drawn for its seed: the rays are exported in the map frame the
+    // map is built in.
+    let shifted = common::portable_experiment(
+        "quickstart",
+        dir.path(),
+        &[("resolution = 0.01", "resolution = 0.01\ngrid_offset = true")],
+    );
+    let shipped = Path::new("experiments/quickstart.toml");
     let mut trees = Vec::new();
-    for pooling in ["off", "faces"] {
-        let rays = dir.path().join(format!("rays_{pooling}.bin"));
-        let ours = dir.path().join(format!("ours_{pooling}.ot"));
+    for (file, pooling) in [
+        (shipped, "off"),
+        (shipped, "faces"),
+        (shifted.as_path(), "off"),
+    ] {
+        let name = format!("{pooling}_{}", trees.len());
+        let rays = dir.path().join(format!("rays_{name}.bin"));
+        let ours = dir.path().join(format!("ours_{name}.ot"));
         let export = ["--export-rays", rays.to_str().unwrap()];
-        ray_update_map(
+        ray_update_map_of(
+            file,
             "0.02",
             &ours,
             &[&export[..], &["--beam-pooling", pooling]].concat(),
         );
-        let theirs = dir.path().join(format!("octomap_{pooling}.ot"));
+        let theirs = dir.path().join(format!("octomap_{name}.ot"));
         run(Command::new(&exe).arg(&rays).arg("0.02").arg(&theirs));
         let ours_tree = read_octree(&ours, Clamp::OCTOMAP).unwrap();
         let their_tree = read_octree(&theirs, Clamp::OCTOMAP).unwrap();
@@ -158,6 +183,7 @@ fn ray_update_builds_the_same_tree_as_octomap() {
         trees.push(ours_tree);
     }
     assert!(trees[0] != trees[1], "pooling moved the rays' ends");
+    assert!(trees[0] != trees[2], "the grid offset moved the map");
 }
 
 /// Finest cells whose class (occupied, free, unknown) differs between two
