@@ -117,11 +117,17 @@ fn ray_update_map(resolution: &str, out: &std::path::Path, extra: &[&str]) {
 
 /// [`ray_update_map`] of the experiment `file`.
 fn ray_update_map_of(file: &Path, resolution: &str, out: &Path, extra: &[&str]) {
+    map_of(file, "ray_update", resolution, out, extra);
+}
+
+/// `sigmap map` of the experiment `file`'s first run with `method` at
+/// `resolution`, written to `out`, with `extra` arguments.
+fn map_of(file: &Path, method: &str, resolution: &str, out: &Path, extra: &[&str]) {
     run(Command::new(env!("CARGO_BIN_EXE_sigmap"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .arg("map")
         .arg(file)
-        .args(["--method", "ray_update"])
+        .args(["--method", method])
         .args(["--resolution", resolution, "-q", "--out"])
         .arg(out)
         .args(extra));
@@ -130,7 +136,8 @@ fn ray_update_map_of(file: &Path, resolution: &str, out: &Path, extra: &[&str]) 
 /// sigmap's ray update against OctoMap's `insertPointCloud` on the same rays:
 /// the same tree, node for node (benches/octomap/insert.cpp, built here with
 /// g++ against Debian's liboctomap-dev); with beam pooling too, the rays
-/// ending at the pooled points.
+/// ending at the pooled points; and `ray_update_discrete` against
+/// `insertPointCloud(..., discretize = true)`, at 2 and 5 cm.
 #[test]
 #[ignore = "needs OctoMap's tools (apt-get install octomap-tools); .ci/run runs it"]
 fn ray_update_builds_the_same_tree_as_octomap() {
@@ -180,6 +187,32 @@ fn ray_update_builds_the_same_tree_as_octomap() {
             ours_tree, their_tree,
             "{pooling}: every leaf and log-odds equal"
         );
+        for resolution in ["0.02", "0.05"] {
+            // The rays again: a grid offset is drawn in voxels.
+            let rays = dir.path().join(format!("rays_discrete_{name}.bin"));
+            let ours_discrete = dir.path().join(format!("ours_discrete_{name}.ot"));
+            let export = ["--export-rays", rays.to_str().unwrap()];
+            let extra = [&export[..], &["--beam-pooling", pooling]].concat();
+            map_of(
+                file,
+                "ray_update_discrete",
+                resolution,
+                &ours_discrete,
+                &extra,
+            );
+            let theirs_discrete = dir.path().join(format!("octomap_discrete_{name}.ot"));
+            run(Command::new(&exe)
+                .arg(&rays)
+                .arg(resolution)
+                .arg(&theirs_discrete)
+                .arg("discretize"));
+            let ours = read_octree(&ours_discrete, Clamp::OCTOMAP).unwrap();
+            let theirs = read_octree(&theirs_discrete, Clamp::OCTOMAP).unwrap();
+            assert_eq!(ours, theirs, "{pooling} at {resolution}: discretized");
+            if resolution == "0.02" {
+                assert!(ours != ours_tree, "one ray per end cell is another map");
+            }
+        }
         trees.push(ours_tree);
     }
     assert!(trees[0] != trees[1], "pooling moved the rays' ends");

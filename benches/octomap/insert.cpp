@@ -1,10 +1,12 @@
 // OctoMap's side of the side-by-side benchmark: read the rays sigmap exported
 // (`sigmap map ... --export-rays FILE`), insert every scan with
 // insertPointCloud at the given resolution on one core, print the rate, and
-// write the tree so the two maps can be compared.
+// write the tree so the two maps can be compared. With `discretize`, OctoMap's
+// discretized insertion (insertPointCloud(..., discretize = true)), which
+// `sigmap map --method ray_update_discrete` builds.
 //
 // Build: g++ -O2 -std=c++17 insert.cpp -o insert -loctomap -loctomath
-// Run:   ./insert RAYS_FILE RESOLUTION [OUT.ot]
+// Run:   ./insert RAYS_FILE RESOLUTION [OUT.ot|-] [discretize]
 #include <octomap/octomap.h>
 #include <chrono>
 #include <cstdint>
@@ -24,7 +26,7 @@ template <typename T> static bool get(std::ifstream& in, T& v) {
 
 int main(int argc, char** argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: %s RAYS_FILE RESOLUTION [OUT.ot]\n", argv[0]);
+    std::fprintf(stderr, "usage: %s RAYS_FILE RESOLUTION [OUT.ot|-] [discretize]\n", argv[0]);
     return 2;
   }
   std::ifstream in(argv[1], std::ios::binary);
@@ -52,15 +54,20 @@ int main(int argc, char** argv) {
     }
     rays += n;
   }
+  const bool discretize = argc > 4 && std::strcmp(argv[4], "discretize") == 0;
+  if (argc > 4 && !discretize) {
+    std::fprintf(stderr, "%s: the fourth argument can only be 'discretize'\n", argv[4]);
+    return 2;
+  }
   octomap::OcTree tree(std::atof(argv[2]));
   auto start = std::chrono::steady_clock::now();
-  for (auto& scan : data) tree.insertPointCloud(scan.cloud, scan.origin, max_range);
+  for (auto& scan : data) tree.insertPointCloud(scan.cloud, scan.origin, max_range, false, discretize);
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   size_t inner = 0, leaves = tree.getNumLeafNodes(), nodes = tree.size();
   inner = nodes - leaves;
   std::printf("octomap rays %zu seconds %.6f rays_per_s %.1f nodes %zu leaves %zu bytes %zu\n", rays, seconds,
               rays / seconds, nodes, leaves, tree.memoryUsage());
   (void)inner;
-  if (argc > 3) tree.write(argv[3]);
+  if (argc > 3 && std::strcmp(argv[3], "-") != 0) tree.write(argv[3]);
   return 0;
 }

@@ -11,7 +11,7 @@ use super::merge::MergePlan;
 use super::method::{propagator, scan_chain, split_chain, Method, REGISTERED_TRUTH_FROM_SCANS};
 use super::pipeline::prepare_and_insert;
 use super::pooling::{Pooled, Pooling};
-use super::ray_update::RayUpdater;
+use super::ray_update::{DiscreteScan, RayUpdater, ScanEnds};
 use super::scan::{
     check_clearing, check_sample_budget, BeamGrid, BeamLayout, BeamStatus, Layouts, MapperView,
     Scan,
@@ -97,8 +97,9 @@ pub fn build_map_with(
     offset: &Vector3,
 ) -> Result<Octree> {
     check_method(view, scans.len(), method, resolution)?;
-    let tree = if method == Method::RayUpdate {
-        ray_update_map(view, scans, extras, resolution, offset)?
+    let tree = if method.casts_rays() {
+        let discrete = method == Method::RayUpdateDiscrete;
+        ray_update_map(view, scans, extras, (resolution, discrete), offset)?
     } else {
         let tree = opdf_map(view, scans, extras, method, resolution, offset)?;
         finish_opdf(
@@ -144,14 +145,36 @@ fn window() -> usize {
     rayon::current_num_threads() + 1
 }
 
+/// One scan of the ray update in the making, and its buffers for the next:
+/// the rays' ends (hits and no-return directions) and, for the discretized
+/// insertion, its rays.
+struct RayScan {
+    updater: RayUpdater,
+    hits: Vec<Point3>,
+    misses: Vec<Vector3>,
+    discrete: DiscreteScan,
+}
+
+impl RayScan {
+    fn new(rule: super::ray_update::UpdateRule) -> Self {
+        Self {
+            updater: RayUpdater::new(rule),
+            hits: Vec::new(),
+            misses: Vec::new(),
+            discrete: DiscreteScan::default(),
+        }
+    }
+}
+
 /// OctoMap's ray update of every scan: each scan's cells are found (on the
 /// tree's geometry alone) while earlier scans' are applied; updaters and
-/// their buffers are reused.
+/// their buffers are reused. `discretized`: OctoMap's discretized
+/// insertion ([`DiscreteScan`]).
 fn ray_update_map(
     view: &MapperView,
     scans: &[Scan],
     extras: BuildExtras,
-    resolution: f64,
+    (resolution, discretized): (f64, bool),
     offset: &Vector3,
 ) -> Result<Octree> {
     let mut tree = Octree::new(resolution);
@@ -159,17 +182,15 @@ fn ray_update_map(
     let settings = view.settings;
     let pooling =
         settings.ray_pooling != Pooling::Off && settings.ray_pooling == settings.beam_pooling;
-    type Spare = (RayUpdater, Vec<Point3>, Vec<Vector3>);
-    let spare = Mutex::new(Vec::<Spare>::new());
-    let find = |i: usize| -> std::result::Result<Spare, String> {
+    let spare = Mutex::new(Vec::<RayScan>::new());
+    let find = |i: usize| -> std::result::Result<RayScan, String> {
         let (scan, layout) = (&scans[i], view.layouts.of(i));
-        let (mut updater, mut hits, mut misses) = pop(&spare).unwrap_or_else(|| {
-            (
-                RayUpdater::new(view.settings.update),
-                Vec::new(),
-                Vec::new(),
-            )
-        });
+        let RayScan {
+            mut updater,
+            mut hits,
+            mut misses,
+            mut discrete,
+        } = pop(&spare).unwrap_or_else(|| RayScan::new(view.settings.update));
         // With beam pooling the rays end at the pooled points (the run's,
         // when it computed them for every method and pools as they do).
         let shared = extras.measured.filter(|_| pooling).map(|m| &m[i][..]);
@@ -183,14 +204,29 @@ fn ray_update_map(
         // Every thread prepares its own scan; the last, with nothing beside
         // it, is spread over the pool.
         updater.walk_alone(i + 1 < scans.len());
-        updater.find_cells(&geometry, &origin, &hits, &misses, view.max_range);
-        Ok((updater, hits, misses))
+        if discretized {
+            let ends = (&hits[..], &misses[..]);
+            let origin = discrete.fill(resolution, &origin, ends, view.max_range);
+            updater.find_cells(&geometry, &origin, discrete.ends(), view.max_range);
+        } else {
+            let ends = ScanEnds {
+                hits: &hits,
+                misses: &misses,
+                float_rays: &[],
+            };
+            updater.find_cells(&geometry, &origin, ends, view.max_range);
+        }
+        Ok(RayScan {
+            updater,
+            hits,
+            misses,
+            discrete,
+        })
     };
     insert_scans(&mut tree, scans.len(), &extras, find, |tree, found| {
-        let (updater, hits, misses) = found;
-        updater.apply(tree);
+        found.updater.apply(tree);
         if let Ok(mut spare) = spare.lock() {
-            spare.push((updater, hits, misses));
+            spare.push(found);
         }
     })?;
     tree.shrink_to_fit();

@@ -25,6 +25,12 @@ pub enum Method {
     Correlated,
     /// OctoMap's ray update (hit/miss log-odds), the baseline most users run.
     RayUpdate,
+    /// OctoMap's ray update with its discretized insertion
+    /// (`insertPointCloud(..., discretize = true)`): one ray per scan to the
+    /// centre of each cell a beam ended in ([`DiscreteScan`]).
+    ///
+    /// [`DiscreteScan`]: super::ray_update::DiscreteScan
+    RayUpdateDiscrete,
     /// Not a mapper: the true occupancy as the run's drawn scene registration
     /// (T_sw) places it, what a perfect sensor on a perfect arm would map.
     /// A scoring reference for `sigmap run` (`runner::registered_truth`): the
@@ -34,19 +40,28 @@ pub enum Method {
 
 impl Method {
     /// Every method.
-    pub const ALL: [Method; 6] = [
+    pub const ALL: [Method; 7] = [
         Method::Blind,
         Method::Jacobian,
         Method::Unscented,
         Method::Correlated,
         Method::RayUpdate,
+        Method::RayUpdateDiscrete,
         Method::RegisteredTruth,
     ];
 
     /// Whether it builds local grids from propagated beams (the OPDF
     /// methods), not rays or the truth.
     pub fn builds_grids(self) -> bool {
-        !matches!(self, Method::RayUpdate | Method::RegisteredTruth)
+        !matches!(
+            self,
+            Method::RayUpdate | Method::RayUpdateDiscrete | Method::RegisteredTruth
+        )
+    }
+
+    /// Whether it is OctoMap's ray update (either insertion).
+    pub fn casts_rays(self) -> bool {
+        matches!(self, Method::RayUpdate | Method::RayUpdateDiscrete)
     }
 
     /// Its name in files and on the command line.
@@ -57,6 +72,7 @@ impl Method {
             Method::Unscented => "unscented",
             Method::Correlated => "correlated",
             Method::RayUpdate => "ray_update",
+            Method::RayUpdateDiscrete => "ray_update_discrete",
             Method::RegisteredTruth => "registered_truth",
         }
     }
@@ -76,8 +92,8 @@ impl FromStr for Method {
             .find(|m| m.as_str() == s)
             .ok_or_else(|| {
                 format!(
-                    "unknown method '{s}' (use blind, jacobian, unscented, correlated, ray_update \
-                     or registered_truth)"
+                    "unknown method '{s}' (use blind, jacobian, unscented, correlated, \
+                     ray_update, ray_update_discrete or registered_truth)"
                 )
             })
     }
@@ -104,7 +120,7 @@ pub fn propagator(
         Method::Unscented | Method::Correlated => {
             Some(Box::new(UnscentedPropagator::new(chain, sigma_set)))
         }
-        Method::RayUpdate | Method::RegisteredTruth => None,
+        Method::RayUpdate | Method::RayUpdateDiscrete | Method::RegisteredTruth => None,
     }
 }
 

@@ -3,10 +3,12 @@
 //! traversed cells free and the end cell occupied; each cell gets at most one
 //! update per scan and occupied wins; hit +0.85, miss −0.41, clamped to
 //! [−2, 3.5] (docs/octomap.md, "The update rule"; OctoMap's `insertPointCloud`).
+//! [`DiscreteScan`] gives the rays of its discretized insertion.
 
-use super::octree::{Clamp, Key, Octree, LOG_ODDS_HIT, LOG_ODDS_MISS};
+use super::octree::{Clamp, Key, Octree, CENTER, LOG_ODDS_HIT, LOG_ODDS_MISS};
 use crate::geometry::{Point3, Vector3};
 use dense::{DenseWalk, ScanRays, Walk};
+pub use discrete::DiscreteScan;
 use rayon::prelude::*;
 use rustc_hash::FxHashSet;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -125,6 +127,41 @@ impl Dda {
             t_delta,
         }
     }
+
+    /// OctoMap's own set-up (`computeRayKeys`) of the walk from `origin`,
+    /// in the cell `start`, to `end`, both `float` points (their `f64`
+    /// values here): the direction and length in `float` (its `norm` sums
+    /// `float` squares and takes the root in `double`), the cell borders
+    /// and the crossings in `double`, as OctoMap computes them.
+    fn octomap(res: f64, origin: &Point3, start: &Key, end: &Point3) -> Self {
+        let (o, e) = (origin.map(|c| c as f32), end.map(|c| c as f32));
+        let d = e - o;
+        let length = f64::from(d.x * d.x + d.y * d.y + d.z * d.z).sqrt() as f32;
+        let dir = d.map(|c| c / length);
+        let mut step = [0i32; 3];
+        let mut t_max = [f64::MAX; 3];
+        let mut t_delta = [f64::MAX; 3];
+        for i in 0..3 {
+            if dir[i] > 0.0 {
+                step[i] = 1;
+            } else if dir[i] < 0.0 {
+                step[i] = -1;
+            }
+            if step[i] != 0 {
+                // keyToCoord, then the half cell as a `float`.
+                let centre = ((start.0[i] as i64 - CENTER) as f64 + 0.5) * res;
+                let border = centre + f64::from((f64::from(step[i]) * res * 0.5) as f32);
+                t_max[i] = (border - f64::from(o[i])) / f64::from(dir[i]);
+                t_delta[i] = res / f64::from(dir[i]).abs();
+            }
+        }
+        Dda {
+            length: f64::from(length),
+            step,
+            t_max,
+            t_delta,
+        }
+    }
 }
 
 /// Sets bit `i` of a bitmap; true when it was not set (by any thread).
@@ -224,8 +261,11 @@ fn key_box(
     tree: &Octree,
     start: Key,
     origin: &Point3,
-    hits: &[Point3],
-    misses: &[Vector3],
+    ScanEnds {
+        hits,
+        misses,
+        float_rays,
+    }: ScanEnds,
     max_range: f64,
 ) -> ([u16; 3], [u16; 3]) {
     // A hit surely within max range (its squared distance below the square
@@ -244,6 +284,7 @@ fn key_box(
                 .par_iter()
                 .map(|d| RayEnd::of_miss(origin, d, max_range).point),
         )
+        .chain(float_rays.par_iter().map(|e| e.point))
     };
     // (Least and greatest are exact whatever the order: the same box for
     // every thread count.)
@@ -318,9 +359,12 @@ pub struct RayUpdater {
 
 /// Where one ray of a scan ends: the point, and whether it is a measured
 /// hit (else a carve to max range).
-struct RayEnd {
-    point: Point3,
-    hit: bool,
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayEnd {
+    /// The end point.
+    pub point: Point3,
+    /// Whether the end cell is hit (else the ray only carves).
+    pub hit: bool,
 }
 
 impl RayEnd {
@@ -358,6 +402,23 @@ impl RayEnd {
 enum Rays<'a> {
     Hits(&'a [Point3]),
     Misses(&'a [Vector3]),
+    Float(&'a [RayEnd]),
+}
+
+/// A scan's ray ends: measured points (`hits`; those beyond the maximum
+/// range carve up to it), directions of beams without a return (`misses`,
+/// unit; carving up to the maximum range), and rays given as OctoMap gives
+/// them to its walk (`float_rays`: `float` ends within the maximum range,
+/// cut already where they reach past it, each walked in OctoMap's own
+/// `float` and `double` operations, [`Dda::octomap`]).
+#[derive(Clone, Copy, Default)]
+pub struct ScanEnds<'a> {
+    /// Measured end points.
+    pub hits: &'a [Point3],
+    /// Unit directions of beams without a return.
+    pub misses: &'a [Vector3],
+    /// Rays walked as OctoMap walks them, from the `float` origin.
+    pub float_rays: &'a [RayEnd],
 }
 
 impl RayUpdater {
@@ -392,7 +453,12 @@ impl RayUpdater {
         misses: &[Vector3],
         max_range: f64,
     ) {
-        self.find_cells(tree, origin, hits, misses, max_range);
+        let ends = ScanEnds {
+            hits,
+            misses,
+            float_rays: &[],
+        };
+        self.find_cells(tree, origin, ends, max_range);
         self.apply(tree);
     }
 
@@ -400,14 +466,12 @@ impl RayUpdater {
     /// and occupied cells (rays walked in parallel), reading only the
     /// geometry of `tree` (its resolution), so a pipeline can find the next
     /// scan's cells while this scan's are applied.
-    pub fn find_cells(
-        &mut self,
-        tree: &Octree,
-        origin: &Point3,
-        hits: &[Point3],
-        misses: &[Vector3],
-        max_range: f64,
-    ) {
+    pub fn find_cells(&mut self, tree: &Octree, origin: &Point3, ends: ScanEnds, max_range: f64) {
+        let ScanEnds {
+            hits,
+            misses,
+            float_rays,
+        } = ends;
         // Nothing of the previous scan may be applied again.
         self.free.codes.clear();
         self.occupied.codes.clear();
@@ -416,7 +480,7 @@ impl RayUpdater {
         };
         // The box of the scan's keys, one cell wider on every side: a walk
         // may end one cell past its end point's (numerical error).
-        let (lo, hi) = key_box(tree, start, origin, hits, misses, max_range);
+        let (lo, hi) = key_box(tree, start, origin, ends, max_range);
         let lo = lo.map(|v| v.saturating_sub(1));
         let hi = hi.map(|v| v.saturating_add(1));
         let dense_limit = self.dense_limit.unwrap_or(DENSE_LIMIT);
@@ -438,6 +502,7 @@ impl RayUpdater {
                 match rays {
                     Rays::Hits(hits) => dense.begin_hits(hits, walks),
                     Rays::Misses(misses) => dense.begin_misses(misses, walks),
+                    Rays::Float(ends) => dense.begin_float(ends, walks),
                 }
             };
             if self.alone || rayon::current_num_threads() == 1 {
@@ -446,7 +511,9 @@ impl RayUpdater {
                 // atomics ([`dense::mark_exclusive`]).
                 let mut walks = std::mem::take(&mut self.walks);
                 let hits = hits.chunks(RAYS_PER_TASK).map(Rays::Hits);
-                for rays in hits.chain(misses.chunks(RAYS_PER_TASK).map(Rays::Misses)) {
+                let misses = misses.chunks(RAYS_PER_TASK).map(Rays::Misses);
+                let float = float_rays.chunks(RAYS_PER_TASK).map(Rays::Float);
+                for rays in hits.chain(misses).chain(float) {
                     let walk = DenseWalk::new(scan, &self.free, &self.occupied);
                     begin(&walk, rays, &mut walks);
                     let (start, lanes, wide) = (walk.start, walk.lanes, walk.wide);
@@ -458,11 +525,14 @@ impl RayUpdater {
                 let walk = DenseWalk::new(scan, &self.free, &self.occupied);
                 let hits = hits.par_chunks(RAYS_PER_TASK).map(Rays::Hits);
                 let misses = misses.par_chunks(RAYS_PER_TASK).map(Rays::Misses);
+                let float = float_rays.par_chunks(RAYS_PER_TASK).map(Rays::Float);
                 let buffer = || Vec::with_capacity(RAYS_PER_TASK);
-                hits.chain(misses).for_each_init(buffer, |walks, rays| {
-                    begin(&walk, rays, walks);
-                    walk.mark_rays(walks);
-                });
+                hits.chain(misses)
+                    .chain(float)
+                    .for_each_init(buffer, |walks, rays| {
+                        begin(&walk, rays, walks);
+                        walk.mark_rays(walks);
+                    });
             }
             // Occupied wins; in depth-first (Morton) order, so that `apply`
             // walks the tree once (listed here, so that a pipeline lists one
@@ -472,11 +542,15 @@ impl RayUpdater {
             let centre = tree.center(&start, 16);
             let hit_ends = hits.iter().map(|p| RayEnd::of_hit(origin, p, max_range));
             let miss_ends = misses.iter().map(|d| RayEnd::of_miss(origin, d, max_range));
-            for e in hit_ends.chain(miss_ends) {
+            let float = float_rays.iter().map(|&e| (e, true));
+            for (e, float) in hit_ends.chain(miss_ends).map(|e| (e, false)).chain(float) {
                 let Some(stop) = tree.key(&e.point) else {
                     continue;
                 };
-                let dda = Dda::new(tree.resolution(), origin, &centre, &e.point);
+                let dda = match float {
+                    false => Dda::new(tree.resolution(), origin, &centre, &e.point),
+                    true => Dda::octomap(tree.resolution(), origin, &start, &e.point),
+                };
                 let free = &mut self.free;
                 walk_keys(start, stop, &dda, |k| free.insert(&Key::unpack(k)));
                 if e.hit {
@@ -505,6 +579,7 @@ impl RayUpdater {
 }
 
 mod dense;
+mod discrete;
 #[cfg(target_arch = "x86_64")]
 mod lanes;
 mod listing;

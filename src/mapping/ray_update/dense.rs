@@ -19,6 +19,8 @@ pub(super) struct DenseWalk<'a> {
     pub centre: Point3,
     /// The origin's cell, as a bitmap index.
     pub start: usize,
+    /// The origin's cell.
+    pub start_key: Key,
     pub free: &'a CellSet,
     pub occupied: &'a CellSet,
     /// Bitmap index change of a step along each axis.
@@ -68,6 +70,7 @@ impl<'a> DenseWalk<'a> {
             max_range: scan.max_range,
             centre: scan.tree.center(&scan.start, 16),
             start: free.index(&scan.start),
+            start_key: scan.start,
             free,
             occupied,
             strides: std::array::from_fn(|axis| free.stride(axis)),
@@ -105,6 +108,20 @@ impl<'a> DenseWalk<'a> {
             .iter()
             .map(|d| RayEnd::of_miss(&self.origin, d, self.max_range));
         walks.extend(ends.filter_map(|end| self.begin(&end)));
+    }
+
+    /// [`DenseWalk::begin_hits`] for rays walked as OctoMap walks them
+    /// ([`Dda::octomap`]; the origin is a `float` point).
+    pub fn begin_float(&self, ends: &[RayEnd], walks: &mut Vec<Walk>) {
+        let start = self.start_key;
+        walks.extend(ends.iter().filter_map(|end| {
+            let key = self.tree.key(&end.point)?;
+            if end.hit {
+                mark(&self.occupied.bits, self.occupied.index(&key));
+            }
+            let dda = Dda::octomap(self.tree.resolution(), &self.origin, &start, &end.point);
+            self.walk(&dda, self.free.index(&key))
+        }));
     }
 
     /// [`DenseWalk::begin_hits`] of one ray.

@@ -1,5 +1,7 @@
 use super::*;
+use crate::geometry::floor;
 use rand::{Rng, SeedableRng};
+use std::collections::BTreeSet;
 
 #[test]
 fn axis_ray_visits_consecutive_cells() {
@@ -347,7 +349,12 @@ fn assert_lanes_walk_as_one(
     let origin = *origin;
     let tree = Octree::new(res);
     let start = tree.key(&origin).unwrap();
-    let (lo, hi) = key_box(&tree, start, &origin, hits, misses, max_range);
+    let ends = ScanEnds {
+        hits,
+        misses,
+        float_rays: &[],
+    };
+    let (lo, hi) = key_box(&tree, start, &origin, ends, max_range);
     let walked = |lanes: bool, wide: bool, alone: bool| {
         let (mut free, mut occupied) = (CellSet::default(), CellSet::default());
         let lo = lo.map(|v| v - 1);
@@ -360,6 +367,7 @@ fn assert_lanes_walk_as_one(
             max_range,
             centre: tree.center(&start, 16),
             start: free.index(&start),
+            start_key: start,
             free: &free,
             occupied: &occupied,
             strides: std::array::from_fn(|axis| free.stride(axis)),
@@ -427,4 +435,121 @@ fn a_scan_with_ends_outside_the_tree_walks_the_others() {
     let misses = awkward_misses(20, 10);
     let leaves = assert_every_walk_matches_the_reference(res, &origin, &hits, &misses, 2.0);
     assert!(leaves > 100, "{leaves} leaves");
+}
+
+/// OctoMap's `computeRayKeys` of one `float` ray, transcribed: its keys
+/// (`floor(x · (1/res))`), its `float` direction and length, its `double`
+/// crossings; every cell before the end's.
+fn octomap_ray_keys(res: f64, origin: &Point3, end: &Point3) -> Vec<Key> {
+    let factor = 1.0 / res;
+    let key = |p: &Point3| {
+        Key(std::array::from_fn(|i| {
+            (floor(p[i] * factor) + CENTER) as u16
+        }))
+    };
+    let (o, e) = (origin.map(|c| c as f32), end.map(|c| c as f32));
+    let (start, stop) = (key(origin), key(end));
+    if start == stop {
+        return Vec::new();
+    }
+    let d = e - o;
+    let length = f64::from(d.x * d.x + d.y * d.y + d.z * d.z).sqrt() as f32;
+    let direction = d / length;
+    let mut step = [0i32; 3];
+    let (mut t_max, mut t_delta) = ([f64::MAX; 3], [f64::MAX; 3]);
+    for i in 0..3 {
+        step[i] = if direction[i] > 0.0 {
+            1
+        } else if direction[i] < 0.0 {
+            -1
+        } else {
+            0
+        };
+        if step[i] != 0 {
+            let mut border = ((start.0[i] as i64 - CENTER) as f64 + 0.5) * res;
+            border += f64::from((f64::from(step[i]) * res * 0.5) as f32);
+            t_max[i] = (border - f64::from(o[i])) / f64::from(direction[i]);
+            t_delta[i] = res / f64::from(direction[i]).abs();
+        }
+    }
+    let (mut keys, mut current) = (vec![start], start);
+    loop {
+        let dim = if t_max[0] < t_max[1] {
+            if t_max[0] < t_max[2] {
+                0
+            } else {
+                2
+            }
+        } else if t_max[1] < t_max[2] {
+            1
+        } else {
+            2
+        };
+        current.0[dim] = (current.0[dim] as i32 + step[dim]) as u16;
+        t_max[dim] += t_delta[dim];
+        if current == stop || t_max.iter().copied().fold(f64::MAX, f64::min) > f64::from(length) {
+            return keys;
+        }
+        keys.push(current);
+    }
+}
+
+#[test]
+fn a_discretized_scan_is_octomaps_discrete_update_every_way_it_is_walked() {
+    // Hits and no-return beams from a float origin, reduced as OctoMap's
+    // `insertPointCloud(..., discretize = true)` reduces them, against
+    // OctoMap's walk transcribed above: each cell's class and count. (Rays
+    // to cell centres tie between axes often enough that walking them in
+    // `f64` instead of OctoMap's `float` fails here.)
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let (res, max_range) = (0.05, 1.2);
+    let origin = Point3::new(0.013, -0.031, 0.257);
+    let direction = |rng: &mut rand_chacha::ChaCha8Rng| {
+        (Vector3::new(rng.random(), rng.random(), rng.random()) * 2.0 - Vector3::repeat(1.0))
+            .normalize()
+    };
+    let hits: Vec<Point3> = (0..4000)
+        .map(|_| origin + direction(&mut rng) * rng.random_range(0.0..1.5))
+        .collect();
+    let misses: Vec<Vector3> = (0..300).map(|_| direction(&mut rng)).collect();
+    let mut scan = DiscreteScan::default();
+    let start = scan.fill(res, &origin, (&hits, &misses), max_range);
+    let rays = scan.ends().float_rays;
+    assert!(rays.len() < hits.len() + misses.len() && rays.iter().any(|r| !r.hit));
+    let mut reference = Octree::new(res);
+    let (mut free, mut occupied) = (BTreeSet::new(), BTreeSet::new());
+    for ray in rays {
+        free.extend(
+            octomap_ray_keys(res, &start, &ray.point)
+                .iter()
+                .map(Key::morton),
+        );
+        if ray.hit {
+            occupied.insert(reference.key(&ray.point).unwrap().morton());
+        }
+    }
+    for code in free.difference(&occupied) {
+        reference.update(&Key::from_morton(*code), LOG_ODDS_MISS, Clamp::OCTOMAP);
+    }
+    for code in &occupied {
+        reference.update(&Key::from_morton(*code), LOG_ODDS_HIT, Clamp::OCTOMAP);
+    }
+    for ((dense_limit, one_at_a_time), alone) in
+        WALKS.into_iter().flat_map(|w| [(w, false), (w, true)])
+    {
+        let mut tree = Octree::new(res);
+        let mut updater = RayUpdater {
+            dense_limit,
+            one_at_a_time,
+            alone,
+            ..RayUpdater::default()
+        };
+        updater.find_cells(&tree, &start, scan.ends(), max_range);
+        updater.apply(&mut tree);
+        assert_eq!(
+            tree.leaves(),
+            reference.leaves(),
+            "{dense_limit:?} {one_at_a_time} alone {alone}"
+        );
+    }
 }
