@@ -7,7 +7,8 @@
 mod common;
 
 use common::{
-    kill_once_journaled, ok, portable_experiment, portable_quickstart, root, run_into, sigmap,
+    kill_once_journaled, ok, portable_experiment, portable_quickstart, root, run_args, run_into,
+    sigmap,
 };
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -284,7 +285,16 @@ fn a_failing_mapper_is_one_line_and_the_finished_runs_stay() {
         let dir = tempfile::tempdir().unwrap();
         let file = experiment(dir.path(), "[1, 2]", "[\"ray_update\"]", &mapper);
         let out = dir.path().join("out");
-        let run = run_into(&file, &out, &["--threads", "1"]);
+        // The failed run's folder, kept for the user, in the test's own
+        // temporary folder (removed with it), not the system's.
+        let tmp = dir.path().join("tmp");
+        std::fs::create_dir(&tmp).unwrap();
+        let run = std::process::Command::new(sigmap_bin)
+            .args(run_args(&file, &out, &["--threads", "1"]))
+            .current_dir(root())
+            .env("TMPDIR", &tmp)
+            .output()
+            .unwrap();
         let err = String::from_utf8_lossy(&run.stderr);
         assert_eq!(run.status.code(), Some(2), "{says}: {err}");
         assert_eq!(err.trim().lines().count(), 1, "one line: {err}");

@@ -76,7 +76,8 @@ enum Command {
     ///
     /// blind, jacobian, unscented: the paper's OPDF merge; correlated: the
     /// unscented merge with the shared pose errors accounted once;
-    /// ray_update: OctoMap's update. Writes a .bt or .ot file. With --scans
+    /// ray_update: OctoMap's update (ray_update_discrete: its discretized
+    /// insertion). Writes a .bt or .ot file. With --scans
     /// and --profile, maps scans recorded elsewhere (an OctoMap ScanGraph)
     /// instead of an experiment's simulated run.
     Map(MapArgs),
@@ -172,7 +173,8 @@ pub(crate) struct MapArgs {
     /// The experiment file (TOML); or give recorded scans with --scans.
     #[arg(required_unless_present = "scans")]
     experiment: Option<PathBuf>,
-    /// blind, jacobian, unscented, correlated or ray_update; or
+    /// blind, jacobian, unscented, correlated, ray_update or
+    /// ray_update_discrete (OctoMap's insertion with discretize = true); or
     /// registered_truth (the truth as the run's scene registration places
     /// it; not for --scans).
     #[arg(long, default_value = "unscented", value_parser = method_parser())]

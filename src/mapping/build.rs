@@ -11,7 +11,7 @@ use super::merge::MergePlan;
 use super::method::{propagator, scan_chain, split_chain, Method, REGISTERED_TRUTH_FROM_SCANS};
 use super::pipeline::prepare_and_insert;
 use super::pooling::{Pooled, Pooling};
-use super::ray_update::{DiscreteScan, RayUpdater, ScanEnds};
+use super::ray_update::{DiscreteScan, RayUpdater};
 use super::scan::{
     check_clearing, check_sample_budget, BeamGrid, BeamLayout, BeamStatus, Layouts, MapperView,
     Scan,
@@ -147,7 +147,7 @@ fn window() -> usize {
 
 /// One scan of the ray update in the making, and its buffers for the next:
 /// the rays' ends (hits and no-return directions) and, for the discretized
-/// insertion, its rays.
+/// insertion, the end cells' centres.
 struct RayScan {
     updater: RayUpdater,
     hits: Vec<Point3>,
@@ -206,15 +206,10 @@ fn ray_update_map(
         updater.walk_alone(i + 1 < scans.len());
         if discretized {
             let ends = (&hits[..], &misses[..]);
-            let origin = discrete.fill(resolution, &origin, ends, view.max_range);
-            updater.find_cells(&geometry, &origin, discrete.ends(), view.max_range);
+            let centres = discrete.fill(&geometry, &origin, ends, view.max_range);
+            updater.find_cells(&geometry, &origin, centres, &[], view.max_range);
         } else {
-            let ends = ScanEnds {
-                hits: &hits,
-                misses: &misses,
-                float_rays: &[],
-            };
-            updater.find_cells(&geometry, &origin, ends, view.max_range);
+            updater.find_cells(&geometry, &origin, &hits, &misses, view.max_range);
         }
         Ok(RayScan {
             updater,

@@ -151,12 +151,16 @@ impl Octree {
         self.resolution * (1u32 << (DEPTH - depth)) as f64
     }
 
-    /// The key of the finest cell containing `p`, if inside the tree's cube.
+    /// The key of the finest cell containing `p`, if inside the tree's cube:
+    /// OctoMap's `coordToKey`, `⌊x · (1/res)⌋ + 2¹⁵` (a product by the
+    /// factor, as OctoMap computes it: a division rounds the other way for
+    /// some points on a cell border, 0.3 at 5 cm among them).
     #[inline]
     pub fn key(&self, p: &Point3) -> Option<Key> {
         let mut k = [0u16; 3];
+        let factor = 1.0 / self.resolution;
         for (axis, out) in k.iter_mut().enumerate() {
-            let v = p[axis] / self.resolution;
+            let v = p[axis] * factor;
             // Far outside (or NaN): no key. This runs twice per ray, hence
             // `geometry::floor` (no libm call).
             if v.is_nan() || v.abs() >= 1e9 {

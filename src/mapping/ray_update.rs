@@ -3,9 +3,11 @@
 //! traversed cells free and the end cell occupied; each cell gets at most one
 //! update per scan and occupied wins; hit +0.85, miss −0.41, clamped to
 //! [−2, 3.5] (docs/octomap.md, "The update rule"; OctoMap's `insertPointCloud`).
-//! [`DiscreteScan`] gives the rays of its discretized insertion.
+//! The rays are OctoMap's to the bit: keyed, cut and walked in its `float`
+//! and `double` operations ([`float`]). [`DiscreteScan`] gives the rays of
+//! its discretized insertion.
 
-use super::octree::{Clamp, Key, Octree, CENTER, LOG_ODDS_HIT, LOG_ODDS_MISS};
+use super::octree::{Clamp, Key, Octree, LOG_ODDS_HIT, LOG_ODDS_MISS};
 use crate::geometry::{Point3, Vector3};
 use dense::{DenseWalk, ScanRays, Walk};
 pub use discrete::DiscreteScan;
@@ -13,27 +15,23 @@ use rayon::prelude::*;
 use rustc_hash::FxHashSet;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
-/// The cells a ray from `origin` to `end` traverses, the end cell excluded
-/// (OctoMap's `computeRayKeys`). Appends to `out`; false if either end lies
-/// outside the tree.
+/// The cells the segment from `origin` to `end` traverses, the end cell
+/// excluded: OctoMap's `computeRayKeys` walk (its order between axes at a
+/// tie) in `f64` on the exact points, the geometry the evaluation's truth
+/// rays need (`eval::observable`). The ray update walks OctoMap's `float`
+/// rays instead ([`RayUpdater::find_cells`]). Appends to `out`; false if
+/// either end lies outside the tree.
 pub fn ray_keys(tree: &Octree, origin: &Point3, end: &Point3, out: &mut Vec<Key>) -> bool {
-    walk_ray(tree, origin, end, |k| out.push(Key::unpack(k)))
-}
-
-/// The DDA behind [`ray_keys`]: calls `visit(key)` for each traversed
-/// cell ([`Key::packed`]).
-#[inline(always)]
-fn walk_ray(tree: &Octree, origin: &Point3, end: &Point3, visit: impl FnMut(u64)) -> bool {
     let (Some(start), Some(stop)) = (tree.key(origin), tree.key(end)) else {
         return false;
     };
-    let dda = Dda::new(tree.resolution(), origin, &tree.center(&start, 16), end);
-    walk_keys(start, stop, &dda, visit);
+    let dda = Dda::segment(tree.resolution(), origin, &tree.center(&start, 16), end);
+    walk_keys(start, stop, &dda, |k| out.push(Key::unpack(k)));
     true
 }
 
-/// [`walk_ray`] of the walk `dda` between cells whose keys (`start`,
-/// `stop`) are known.
+/// The walk `dda` between cells whose keys (`start`, `stop`) are known:
+/// calls `visit(key)` for each traversed cell ([`Key::packed`]).
 #[inline(always)]
 fn walk_keys(start: Key, stop: Key, dda: &Dda, mut visit: impl FnMut(u64)) {
     if start == stop {
@@ -98,10 +96,9 @@ struct Dda {
 }
 
 impl Dda {
-    /// The walk from `origin`, in the cell whose centre is `centre`, to
-    /// `end`, on a grid of cells of size `res`.
-    #[inline(always)]
-    fn new(res: f64, origin: &Point3, centre: &Point3, end: &Point3) -> Self {
+    /// The walk in `f64` from `origin`, in the cell whose centre is
+    /// `centre`, to `end`, on a grid of cells of size `res` ([`ray_keys`]).
+    fn segment(res: f64, origin: &Point3, centre: &Point3, end: &Point3) -> Self {
         let diff = end - origin;
         let length = diff.norm();
         let dir = diff / length;
@@ -128,15 +125,17 @@ impl Dda {
         }
     }
 
-    /// OctoMap's own set-up (`computeRayKeys`) of the walk from `origin`,
-    /// in the cell `start`, to `end`, both `float` points (their `f64`
-    /// values here): the direction and length in `float` (its `norm` sums
-    /// `float` squares and takes the root in `double`), the cell borders
-    /// and the crossings in `double`, as OctoMap computes them.
-    fn octomap(res: f64, origin: &Point3, start: &Key, end: &Point3) -> Self {
+    /// OctoMap's set-up (`computeRayKeys`) of the walk from `origin`, in
+    /// the cell `start`, to `end`, both `float` points (their `f64`
+    /// values), on a grid of cells of size `res`: the direction and length
+    /// in `float` (its `norm` sums `float` squares and takes the root in
+    /// `double`), the cell's borders and the crossings in `double`, each
+    /// operation OctoMap's.
+    #[inline(always)]
+    fn new(res: f64, origin: &Point3, start: &Key, end: &Point3) -> Self {
         let (o, e) = (origin.map(|c| c as f32), end.map(|c| c as f32));
         let d = e - o;
-        let length = f64::from(d.x * d.x + d.y * d.y + d.z * d.z).sqrt() as f32;
+        let length = float::norm(&d) as f32;
         let dir = d.map(|c| c / length);
         let mut step = [0i32; 3];
         let mut t_max = [f64::MAX; 3];
@@ -149,8 +148,8 @@ impl Dda {
             }
             if step[i] != 0 {
                 // keyToCoord, then the half cell as a `float`.
-                let centre = ((start.0[i] as i64 - CENTER) as f64 + 0.5) * res;
-                let border = centre + f64::from((f64::from(step[i]) * res * 0.5) as f32);
+                let border = float::centre(start.0[i], res)
+                    + f64::from((f64::from(step[i]) * res * 0.5) as f32);
                 t_max[i] = (border - f64::from(o[i])) / f64::from(dir[i]);
                 t_delta[i] = res / f64::from(dir[i]).abs();
             }
@@ -252,44 +251,48 @@ impl CellSet {
     }
 }
 
-/// The smallest box of keys holding the origin's (`start`) and the end
-/// point's of every ray ([`RayEnd`]) that ends in the tree: the keys of
-/// the end points' least and greatest coordinates (keys grow with
-/// coordinates), or, when one of those lies outside the tree, the keys one
-/// by one.
+/// A box of keys holding the origin's (`start`) and the end point's of
+/// every ray ([`RayEnd`]) that ends in the tree, but for a sliver of a cell
+/// on each side: the keys of the end points' least and greatest coordinates
+/// (keys grow with coordinates), with each end taken in `f64` (the `float`
+/// end lies within a thousandth of a cell of it, for any point the tree
+/// holds: 2⁻²⁴ of 2¹⁵ cells); or, when one of those lies outside the tree,
+/// the exact ends' keys one by one.
 fn key_box(
     tree: &Octree,
     start: Key,
     origin: &Point3,
-    ScanEnds {
-        hits,
-        misses,
-        float_rays,
-    }: ScanEnds,
+    (hits, misses): (&[Point3], &[Vector3]),
     max_range: f64,
 ) -> ([u16; 3], [u16; 3]) {
-    // A hit surely within max range (its squared distance below the square
-    // of a hair less than that range) ends at itself: no square root. (The
-    // box would hold every end even if not: the origin is in it, and a
-    // truncated end lies between the origin and its hit.)
-    let surely_within = (max_range * (1.0 - 1e-9)).powi(2);
-    let end_of_hit = |p: &Point3| match (p - origin).norm_squared() <= surely_within {
-        true => *p,
-        false => RayEnd::of_hit(origin, p, max_range).point,
+    // A hit within max range ends at itself: no square root.
+    let square = max_range * max_range;
+    let near_end_of_hit = |p: &Point3| {
+        let d = p - origin;
+        match d.norm_squared() <= square {
+            true => *p,
+            false => origin + d * (max_range / d.norm()),
+        }
     };
+    let near_ends = || {
+        let hits = hits.par_iter().map(near_end_of_hit);
+        hits.chain(misses.par_iter().map(|d| origin + d * max_range))
+    };
+    let float_origin = float::point(origin);
     let ends = || {
-        let hits = hits.par_iter().map(end_of_hit);
+        let hits = hits
+            .par_iter()
+            .map(|p| RayEnd::of_hit(&float_origin, p, max_range).point);
         hits.chain(
             misses
                 .par_iter()
-                .map(|d| RayEnd::of_miss(origin, d, max_range).point),
+                .map(|d| RayEnd::of_miss(origin, &float_origin, d, max_range).point),
         )
-        .chain(float_rays.par_iter().map(|e| e.point))
     };
     // (Least and greatest are exact whatever the order: the same box for
     // every thread count.)
     let none = || (Point3::from([f64::MAX; 3]), Point3::from([f64::MIN; 3]));
-    let (least, greatest) = ends()
+    let (least, greatest) = near_ends()
         .fold(none, |(l, g), e| (l.inf(&e), g.sup(&e)))
         .reduce(none, |(l, g), (m, h)| (l.inf(&m), g.sup(&h)));
     let (mut lo, mut hi) = (start.0, start.0);
@@ -357,44 +360,44 @@ pub struct RayUpdater {
     walks: Vec<Walk>,
 }
 
-/// Where one ray of a scan ends: the point, and whether it is a measured
-/// hit (else a carve to max range).
+/// Where one ray of a scan ends, as OctoMap's `computeUpdate` casts it:
+/// the `float` point, and whether it is a measured hit (else the ray is cut
+/// at the maximum range and only carves).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RayEnd {
-    /// The end point.
-    pub point: Point3,
-    /// Whether the end cell is hit (else the ray only carves).
-    pub hit: bool,
+struct RayEnd {
+    point: Point3,
+    hit: bool,
 }
 
 impl RayEnd {
-    /// The ray of a measured point `hit`: to it, or, when it lies beyond
-    /// `max_range`, only carving up to that range (OctoMap's rule).
+    /// The ray from the `float` point `origin` to the measured point `hit`
+    /// (as a `float`): to it, or, when it lies beyond `max_range`, cut
+    /// there ([`float::cut`]).
     #[inline(always)]
     fn of_hit(origin: &Point3, hit: &Point3, max_range: f64) -> Self {
-        let d = hit - origin;
-        let n = d.norm();
-        if n <= max_range {
-            RayEnd {
-                point: *hit,
-                hit: true,
-            }
-        } else {
-            RayEnd {
-                point: origin + d * (max_range / n),
-                hit: false,
-            }
+        let point = float::point(hit);
+        match float::cut(origin, &point, max_range) {
+            None => RayEnd { point, hit: true },
+            Some(point) => RayEnd { point, hit: false },
         }
     }
 
-    /// The ray of a beam without return along `direction` (unit): carving
-    /// up to `max_range`.
+    /// The ray of a beam without return along `direction` (unit): its point
+    /// at twice `max_range` from the scan's `origin`, as `--export-rays`
+    /// gives it to OctoMap, cast from the `float` origin and so cut at
+    /// `max_range` ([`RayEnd::of_hit`]).
     #[inline(always)]
-    fn of_miss(origin: &Point3, direction: &Vector3, max_range: f64) -> Self {
-        RayEnd {
-            point: origin + direction * max_range,
-            hit: false,
-        }
+    fn of_miss(
+        origin: &Point3,
+        float_origin: &Point3,
+        direction: &Vector3,
+        max_range: f64,
+    ) -> Self {
+        RayEnd::of_hit(
+            float_origin,
+            &(origin + direction * (2.0 * max_range)),
+            max_range,
+        )
     }
 }
 
@@ -402,23 +405,6 @@ impl RayEnd {
 enum Rays<'a> {
     Hits(&'a [Point3]),
     Misses(&'a [Vector3]),
-    Float(&'a [RayEnd]),
-}
-
-/// A scan's ray ends: measured points (`hits`; those beyond the maximum
-/// range carve up to it), directions of beams without a return (`misses`,
-/// unit; carving up to the maximum range), and rays given as OctoMap gives
-/// them to its walk (`float_rays`: `float` ends within the maximum range,
-/// cut already where they reach past it, each walked in OctoMap's own
-/// `float` and `double` operations, [`Dda::octomap`]).
-#[derive(Clone, Copy, Default)]
-pub struct ScanEnds<'a> {
-    /// Measured end points.
-    pub hits: &'a [Point3],
-    /// Unit directions of beams without a return.
-    pub misses: &'a [Vector3],
-    /// Rays walked as OctoMap walks them, from the `float` origin.
-    pub float_rays: &'a [RayEnd],
 }
 
 impl RayUpdater {
@@ -453,12 +439,7 @@ impl RayUpdater {
         misses: &[Vector3],
         max_range: f64,
     ) {
-        let ends = ScanEnds {
-            hits,
-            misses,
-            float_rays: &[],
-        };
-        self.find_cells(tree, origin, ends, max_range);
+        self.find_cells(tree, origin, hits, misses, max_range);
         self.apply(tree);
     }
 
@@ -466,23 +447,33 @@ impl RayUpdater {
     /// and occupied cells (rays walked in parallel), reading only the
     /// geometry of `tree` (its resolution), so a pipeline can find the next
     /// scan's cells while this scan's are applied.
-    pub fn find_cells(&mut self, tree: &Octree, origin: &Point3, ends: ScanEnds, max_range: f64) {
-        let ScanEnds {
-            hits,
-            misses,
-            float_rays,
-        } = ends;
+    ///
+    /// The rays are OctoMap's `insertPointCloud` of the scan as
+    /// `--export-rays` writes it (`float` origin and points, a no-return
+    /// beam as its point at twice `max_range`; docs/octomap.md): keyed,
+    /// cut at the maximum range and walked in OctoMap's own `float` and
+    /// `double` operations, so the cells are OctoMap's to the bit.
+    pub fn find_cells(
+        &mut self,
+        tree: &Octree,
+        origin: &Point3,
+        hits: &[Point3],
+        misses: &[Vector3],
+        max_range: f64,
+    ) {
         // Nothing of the previous scan may be applied again.
         self.free.codes.clear();
         self.occupied.codes.clear();
-        let Some(start) = tree.key(origin) else {
+        let float_origin = float::point(origin);
+        let Some(start) = tree.key(&float_origin) else {
             return;
         };
-        // The box of the scan's keys, one cell wider on every side: a walk
-        // may end one cell past its end point's (numerical error).
-        let (lo, hi) = key_box(tree, start, origin, ends, max_range);
-        let lo = lo.map(|v| v.saturating_sub(1));
-        let hi = hi.map(|v| v.saturating_add(1));
+        // The box of the scan's keys, two cells wider on every side: one
+        // for the sliver `key_box` may leave out, one as a walk may end one
+        // cell past its end point's (numerical error).
+        let (lo, hi) = key_box(tree, start, origin, (hits, misses), max_range);
+        let lo = lo.map(|v| v.saturating_sub(2));
+        let hi = hi.map(|v| v.saturating_add(2));
         let dense_limit = self.dense_limit.unwrap_or(DENSE_LIMIT);
         self.free.reset(lo, hi, dense_limit);
         self.occupied.reset(lo, hi, dense_limit);
@@ -502,7 +493,6 @@ impl RayUpdater {
                 match rays {
                     Rays::Hits(hits) => dense.begin_hits(hits, walks),
                     Rays::Misses(misses) => dense.begin_misses(misses, walks),
-                    Rays::Float(ends) => dense.begin_float(ends, walks),
                 }
             };
             if self.alone || rayon::current_num_threads() == 1 {
@@ -512,8 +502,7 @@ impl RayUpdater {
                 let mut walks = std::mem::take(&mut self.walks);
                 let hits = hits.chunks(RAYS_PER_TASK).map(Rays::Hits);
                 let misses = misses.chunks(RAYS_PER_TASK).map(Rays::Misses);
-                let float = float_rays.chunks(RAYS_PER_TASK).map(Rays::Float);
-                for rays in hits.chain(misses).chain(float) {
+                for rays in hits.chain(misses) {
                     let walk = DenseWalk::new(scan, &self.free, &self.occupied);
                     begin(&walk, rays, &mut walks);
                     let (start, lanes, wide) = (walk.start, walk.lanes, walk.wide);
@@ -525,32 +514,27 @@ impl RayUpdater {
                 let walk = DenseWalk::new(scan, &self.free, &self.occupied);
                 let hits = hits.par_chunks(RAYS_PER_TASK).map(Rays::Hits);
                 let misses = misses.par_chunks(RAYS_PER_TASK).map(Rays::Misses);
-                let float = float_rays.par_chunks(RAYS_PER_TASK).map(Rays::Float);
                 let buffer = || Vec::with_capacity(RAYS_PER_TASK);
-                hits.chain(misses)
-                    .chain(float)
-                    .for_each_init(buffer, |walks, rays| {
-                        begin(&walk, rays, walks);
-                        walk.mark_rays(walks);
-                    });
+                hits.chain(misses).for_each_init(buffer, |walks, rays| {
+                    begin(&walk, rays, walks);
+                    walk.mark_rays(walks);
+                });
             }
             // Occupied wins; in depth-first (Morton) order, so that `apply`
             // walks the tree once (listed here, so that a pipeline lists one
             // scan's cells while another's are applied).
             self.free.list_marked(&mut self.occupied);
         } else {
-            let centre = tree.center(&start, 16);
-            let hit_ends = hits.iter().map(|p| RayEnd::of_hit(origin, p, max_range));
-            let miss_ends = misses.iter().map(|d| RayEnd::of_miss(origin, d, max_range));
-            let float = float_rays.iter().map(|&e| (e, true));
-            for (e, float) in hit_ends.chain(miss_ends).map(|e| (e, false)).chain(float) {
+            let o = &float_origin;
+            let hit_ends = hits.iter().map(|p| RayEnd::of_hit(o, p, max_range));
+            let miss_ends = misses
+                .iter()
+                .map(|d| RayEnd::of_miss(origin, o, d, max_range));
+            for e in hit_ends.chain(miss_ends) {
                 let Some(stop) = tree.key(&e.point) else {
                     continue;
                 };
-                let dda = match float {
-                    false => Dda::new(tree.resolution(), origin, &centre, &e.point),
-                    true => Dda::octomap(tree.resolution(), origin, &start, &e.point),
-                };
+                let dda = Dda::new(tree.resolution(), o, &start, &e.point);
                 let free = &mut self.free;
                 walk_keys(start, stop, &dda, |k| free.insert(&Key::unpack(k)));
                 if e.hit {
@@ -580,6 +564,7 @@ impl RayUpdater {
 
 mod dense;
 mod discrete;
+mod float;
 #[cfg(target_arch = "x86_64")]
 mod lanes;
 mod listing;

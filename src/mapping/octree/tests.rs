@@ -19,11 +19,13 @@ fn keys_and_centres_follow_octomap() {
 
 #[test]
 fn keys_floor_like_octomap_on_every_side_of_a_cell_border() {
-    // OctoMap: floor(coordinate / resolution) + 2^15. Checked against
+    // OctoMap: floor(coordinate · (1/resolution)) + 2^15. Checked against
     // `f64::floor` on borders, just beside them, and at random.
     let tree = Octree::new(0.05);
+    // OctoMap's coordToKey: floor(resolution_factor * coordinate), the
+    // factor 1/res (a division rounds 0.3 / 0.05 down to 5.999...).
     let reference = |v: f64| {
-        let k = (v / 0.05).floor();
+        let k = (v * (1.0 / 0.05)).floor();
         if !k.is_finite() {
             return None;
         }
@@ -50,6 +52,8 @@ fn keys_floor_like_octomap_on_every_side_of_a_cell_border() {
         let key = tree.key(&Point3::new(v, 0.0, 0.0)).map(|k| k.0[0]);
         assert_eq!(key, reference(v), "x = {v}");
     }
+    let key = tree.key(&Point3::new(0.3, 0.0, 0.0)).unwrap();
+    assert_eq!(key.0[0] as i64 - CENTER, 6, "0.3 · 20 = 6, not 0.3 / 0.05");
 }
 
 /// The reference: a map of finest cells, no pruning, no inner nodes.

@@ -4,7 +4,7 @@
 //! cell margin of the set's box keeps unique). No keys are built; the sets
 //! list their cells afterwards ([`CellSet::list_marked`]).
 
-use super::{mark, CellSet, Dda, RayEnd};
+use super::{float, mark, CellSet, Dda, RayEnd};
 use crate::geometry::{Point3, Vector3};
 use crate::mapping::octree::{Key, Octree};
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -13,10 +13,13 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 /// the free and occupied bitmaps (one box), computed once per scan.
 pub(super) struct DenseWalk<'a> {
     pub tree: &'a Octree,
+    /// The scan's origin, as given (no-return beams' points start there).
     pub origin: Point3,
+    /// The origin as the `float` point OctoMap holds: the rays start there.
+    pub float_origin: Point3,
+    /// `1 / resolution`, OctoMap's `resolution_factor` ([`Octree::key`]).
+    pub factor: f64,
     pub max_range: f64,
-    /// The centre of the origin's cell.
-    pub centre: Point3,
     /// The origin's cell, as a bitmap index.
     pub start: usize,
     /// The origin's cell.
@@ -67,8 +70,9 @@ impl<'a> DenseWalk<'a> {
         DenseWalk {
             tree: scan.tree,
             origin: scan.origin,
+            float_origin: float::point(&scan.origin),
+            factor: 1.0 / scan.tree.resolution(),
             max_range: scan.max_range,
-            centre: scan.tree.center(&scan.start, 16),
             start: free.index(&scan.start),
             start_key: scan.start,
             free,
@@ -91,7 +95,7 @@ impl<'a> DenseWalk<'a> {
         }
         let ends = hits
             .iter()
-            .map(|p| RayEnd::of_hit(&self.origin, p, self.max_range));
+            .map(|p| RayEnd::of_hit(&self.float_origin, p, self.max_range));
         walks.extend(ends.filter_map(|end| self.begin(&end)));
     }
 
@@ -106,22 +110,8 @@ impl<'a> DenseWalk<'a> {
         }
         let ends = misses
             .iter()
-            .map(|d| RayEnd::of_miss(&self.origin, d, self.max_range));
+            .map(|d| RayEnd::of_miss(&self.origin, &self.float_origin, d, self.max_range));
         walks.extend(ends.filter_map(|end| self.begin(&end)));
-    }
-
-    /// [`DenseWalk::begin_hits`] for rays walked as OctoMap walks them
-    /// ([`Dda::octomap`]; the origin is a `float` point).
-    pub fn begin_float(&self, ends: &[RayEnd], walks: &mut Vec<Walk>) {
-        let start = self.start_key;
-        walks.extend(ends.iter().filter_map(|end| {
-            let key = self.tree.key(&end.point)?;
-            if end.hit {
-                mark(&self.occupied.bits, self.occupied.index(&key));
-            }
-            let dda = Dda::octomap(self.tree.resolution(), &self.origin, &start, &end.point);
-            self.walk(&dda, self.free.index(&key))
-        }));
     }
 
     /// [`DenseWalk::begin_hits`] of one ray.
@@ -133,8 +123,8 @@ impl<'a> DenseWalk<'a> {
         }
         let dda = Dda::new(
             self.tree.resolution(),
-            &self.origin,
-            &self.centre,
+            &self.float_origin,
+            &self.start_key,
             &end.point,
         );
         self.walk(&dda, self.free.index(&key))

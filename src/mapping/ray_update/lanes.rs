@@ -23,89 +23,131 @@ use std::sync::atomic::AtomicU64;
 /// call it where the CPU has it.
 #[target_feature(enable = "avx2")]
 pub(super) fn begin_hits(dense: &DenseWalk, hits: &[Point3], walks: &mut Vec<Walk>) {
-    let max_range = _mm256_set1_pd(dense.max_range);
+    let max_range = _mm256_set1_pd(f64::from(dense.max_range as f32));
+    let origin = dense.float_origin;
     let mut four = hits.chunks_exact(4);
     for hits in &mut four {
         let (mut point, mut diff) = ([_mm256_setzero_pd(); 3], [_mm256_setzero_pd(); 3]);
         for a in 0..3 {
-            point[a] = _mm256_setr_pd(hits[0][a], hits[1][a], hits[2][a], hits[3][a]);
-            diff[a] = _mm256_sub_pd(point[a], _mm256_set1_pd(dense.origin[a]));
+            point[a] = to_float(_mm256_setr_pd(
+                hits[0][a], hits[1][a], hits[2][a], hits[3][a],
+            ));
+            diff[a] = to_float(_mm256_sub_pd(point[a], _mm256_set1_pd(origin[a])));
         }
-        let within = _mm256_cmp_pd::<_CMP_LE_OQ>(norm(diff), max_range);
+        let within = _mm256_cmp_pd::<_CMP_LE_OQ>(float_norm(diff), max_range);
         if _mm256_movemask_pd(within) == 0b1111 {
             begin_four(dense, point, 0b1111, walks);
         } else {
             // Some beyond max range (rare): one by one.
             let ends = hits
                 .iter()
-                .map(|p| RayEnd::of_hit(&dense.origin, p, dense.max_range));
+                .map(|p| RayEnd::of_hit(&origin, p, dense.max_range));
             walks.extend(ends.filter_map(|end| dense.begin(&end)));
         }
     }
     let ends = four
         .remainder()
         .iter()
-        .map(|p| RayEnd::of_hit(&dense.origin, p, dense.max_range));
+        .map(|p| RayEnd::of_hit(&origin, p, dense.max_range));
     walks.extend(ends.filter_map(|end| dense.begin(&end)));
 }
 
 /// [`DenseWalk::begin_misses`], four rays at a time: the rays' ends as
-/// [`RayEnd::of_miss`] finds them, then [`begin_four`]. Compiled for AVX2:
-/// call it where the CPU has it.
+/// [`RayEnd::of_miss`] finds them (the point at twice the maximum range,
+/// cut at it in `float`), then [`begin_four`]. Compiled for AVX2: call it
+/// where the CPU has it.
 #[target_feature(enable = "avx2")]
 pub(super) fn begin_misses(dense: &DenseWalk, misses: &[Vector3], walks: &mut Vec<Walk>) {
-    let max_range = _mm256_set1_pd(dense.max_range);
+    let twice = _mm256_set1_pd(2.0 * dense.max_range);
+    let max_range = _mm256_set1_pd(f64::from(dense.max_range as f32));
+    let origin = dense.float_origin;
     let mut four = misses.chunks_exact(4);
-    for misses in &mut four {
-        let mut point = [_mm256_setzero_pd(); 3];
+    for chunk in &mut four {
+        let mut diff = [_mm256_setzero_pd(); 3];
         for a in 0..3 {
-            let d = _mm256_setr_pd(misses[0][a], misses[1][a], misses[2][a], misses[3][a]);
-            point[a] = _mm256_add_pd(_mm256_set1_pd(dense.origin[a]), _mm256_mul_pd(d, max_range));
+            let d = _mm256_setr_pd(chunk[0][a], chunk[1][a], chunk[2][a], chunk[3][a]);
+            let far = _mm256_add_pd(_mm256_set1_pd(dense.origin[a]), _mm256_mul_pd(d, twice));
+            diff[a] = to_float(_mm256_sub_pd(to_float(far), _mm256_set1_pd(origin[a])));
         }
-        begin_four(dense, point, 0, walks);
+        let norm = float_norm(diff);
+        let beyond = _mm256_cmp_pd::<_CMP_GT_OQ>(norm, max_range);
+        if _mm256_movemask_pd(beyond) != 0b1111 {
+            // A maximum range of nearly nothing: one by one.
+            let ends = chunk
+                .iter()
+                .map(|d| RayEnd::of_miss(&dense.origin, &origin, d, dense.max_range));
+            walks.extend(ends.filter_map(|end| dense.begin(&end)));
+            continue;
+        }
+        // OctoMap's cut: origin + (d / (float) |d|) · (float) max_range.
+        let length = to_float(norm);
+        let mut end = [_mm256_setzero_pd(); 3];
+        for a in 0..3 {
+            let direction = to_float(_mm256_div_pd(diff[a], length));
+            let reach = to_float(_mm256_mul_pd(direction, max_range));
+            end[a] = to_float(_mm256_add_pd(_mm256_set1_pd(origin[a]), reach));
+        }
+        begin_four(dense, end, 0, walks);
     }
     let ends = four
         .remainder()
         .iter()
-        .map(|d| RayEnd::of_miss(&dense.origin, d, dense.max_range));
+        .map(|d| RayEnd::of_miss(&dense.origin, &origin, d, dense.max_range));
     walks.extend(ends.filter_map(|end| dense.begin(&end)));
 }
 
-/// `|v|` lane by lane, as nalgebra's `norm` computes it: √((x² + y²) + z²).
+/// `x` rounded to the nearest `float`, lane by lane, in `f64`. An
+/// operation on `float`s computed in `f64` and rounded so is the `float`
+/// operation's result: `f64` carries more than twice `float`'s precision
+/// plus two bits, so the double rounding is exact for +, −, ×, ÷ and √
+/// (Figueroa, 1995). This is how the lanes do OctoMap's `float` arithmetic.
 #[target_feature(enable = "avx2")]
 #[inline]
-fn norm(v: [__m256d; 3]) -> __m256d {
-    let squares = v.map(|d| _mm256_mul_pd(d, d));
-    _mm256_sqrt_pd(_mm256_add_pd(
-        _mm256_add_pd(squares[0], squares[1]),
-        squares[2],
-    ))
+fn to_float(x: __m256d) -> __m256d {
+    _mm256_cvtps_pd(_mm256_cvtpd_ps(x))
 }
 
-/// [`DenseWalk::begin`] of four rays ending at `point` (lanes; hits where
-/// bit `k` of `hit` is set): the end cells' keys ([`Octree::key`](crate::mapping::octree::Octree::key))
-/// and the walks' set-up ([`Dda::new`]) with the same operations lane by
-/// lane (a dozen divisions and a square root per ray, four to an
-/// instruction here).
+/// [`float::norm`](super::float::norm) lane by lane: the `float` sum of the
+/// `float` squares, (x² + y²) + z², its root in `f64`.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn float_norm(v: [__m256d; 3]) -> __m256d {
+    let squares = v.map(|d| to_float(_mm256_mul_pd(d, d)));
+    let sum = to_float(_mm256_add_pd(
+        to_float(_mm256_add_pd(squares[0], squares[1])),
+        squares[2],
+    ));
+    _mm256_sqrt_pd(sum)
+}
+
+/// [`DenseWalk::begin`] of four rays ending at the `float` points `point`
+/// (lanes; hits where bit `k` of `hit` is set): the end cells' keys
+/// ([`Octree::key`](crate::mapping::octree::Octree::key)) and the walks' set-up ([`Dda::new`])
+/// with the same operations lane by lane (a dozen divisions and a square
+/// root per ray, four to an instruction here).
 #[target_feature(enable = "avx2")]
 #[inline]
 fn begin_four(dense: &DenseWalk, point: [__m256d; 3], hit: i32, walks: &mut Vec<Walk>) {
-    let res = _mm256_set1_pd(dense.tree.resolution());
-    let half = dense.tree.resolution() * 0.5;
+    let resolution = dense.tree.resolution();
+    let res = _mm256_set1_pd(resolution);
+    let factor = _mm256_set1_pd(dense.factor);
+    // OctoMap's half cell, a `float`.
+    let half = f64::from((resolution * 0.5) as f32);
+    let origin = dense.float_origin;
     let (sign, zero, none) = (
         _mm256_set1_pd(-0.0),
         _mm256_setzero_pd(),
         _mm256_set1_pd(f64::MAX),
     );
-    // Lane by lane, per axis: the end cell's key, floor(p / res) + CENTER
-    // where |p / res| < 1e9 and the key fits 16 bits (else the ray is not
-    // walked); the walk's steps, its first crossing (of the origin cell's
-    // border centre + step·res·0.5, as `Dda::new` computes it) and the
-    // crossings' spacing.
+    // Lane by lane, per axis: the end cell's key, floor(p · factor) +
+    // CENTER where |p · factor| < 1e9 and the key fits 16 bits (else the
+    // ray is not walked); the walk's steps, its first crossing (of the
+    // origin cell's centre ± the half cell, as `Dda::new` computes it) and
+    // the crossings' spacing.
     let mut inside = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
     let (mut key, mut diff) = ([[0.0; 4]; 3], [zero; 3]);
     for a in 0..3 {
-        let v = _mm256_div_pd(point[a], res);
+        let v = _mm256_mul_pd(point[a], factor);
         let near = _mm256_cmp_pd::<_CMP_LT_OQ>(_mm256_andnot_pd(sign, v), _mm256_set1_pd(1e9));
         let k = _mm256_add_pd(_mm256_floor_pd(v), _mm256_set1_pd(CENTER as f64));
         let fits = _mm256_and_pd(
@@ -114,23 +156,24 @@ fn begin_four(dense: &DenseWalk, point: [__m256d; 3], hit: i32, walks: &mut Vec<
         );
         inside = _mm256_and_pd(inside, _mm256_and_pd(near, fits));
         key[a] = to_lanes(k);
-        diff[a] = _mm256_sub_pd(point[a], _mm256_set1_pd(dense.origin[a]));
+        diff[a] = to_float(_mm256_sub_pd(point[a], _mm256_set1_pd(origin[a])));
     }
     let inside = _mm256_movemask_pd(inside);
-    let length = norm(diff);
+    let length = to_float(float_norm(diff));
     let (mut t_max, mut t_delta) = ([[0.0; 4]; 3], [[0.0; 4]; 3]);
     let (mut forward, mut backward) = ([0; 3], [0; 3]);
     for a in 0..3 {
-        let dir = _mm256_div_pd(diff[a], length);
+        let dir = to_float(_mm256_div_pd(diff[a], length));
         let ahead = _mm256_cmp_pd::<_CMP_GT_OQ>(dir, zero);
         let behind = _mm256_cmp_pd::<_CMP_LT_OQ>(dir, zero);
         let moves = _mm256_or_pd(ahead, behind);
+        let centre = super::float::centre(dense.start_key.0[a], resolution);
         let border = _mm256_blendv_pd(
-            _mm256_set1_pd(dense.centre[a] + -half),
-            _mm256_set1_pd(dense.centre[a] + half),
+            _mm256_set1_pd(centre + -half),
+            _mm256_set1_pd(centre + half),
             ahead,
         );
-        let first = _mm256_div_pd(_mm256_sub_pd(border, _mm256_set1_pd(dense.origin[a])), dir);
+        let first = _mm256_div_pd(_mm256_sub_pd(border, _mm256_set1_pd(origin[a])), dir);
         let spacing = _mm256_div_pd(res, _mm256_andnot_pd(sign, dir));
         t_max[a] = to_lanes(_mm256_blendv_pd(none, first, moves));
         t_delta[a] = to_lanes(_mm256_blendv_pd(none, spacing, moves));

@@ -1,5 +1,5 @@
 use super::*;
-use crate::geometry::floor;
+use crate::mapping::octree::CENTER;
 use rand::{Rng, SeedableRng};
 use std::collections::BTreeSet;
 
@@ -62,8 +62,11 @@ fn scan_marks_free_then_occupied_and_occupied_wins() {
     assert_eq!(at(0.05, 1.15), None);
 }
 
-/// The scan's cells the slow way: every ray's [`ray_keys`], the hit
-/// cells occupied and winning, each cell updated once.
+/// The scan's cells the slow way, OctoMap's `insertPointCloud` transcribed
+/// ray by ray (`computeUpdate`): the `float` origin and points (hits, then
+/// each no-return beam's point at twice `max_range`), a point beyond the
+/// maximum range cut at it in `float`, every ray's [`octomap_ray_keys`];
+/// the hit cells occupied and winning, each cell updated once.
 fn reference_scan(
     tree: &mut Octree,
     origin: &Point3,
@@ -71,23 +74,26 @@ fn reference_scan(
     misses: &[Vector3],
     max_range: f64,
 ) {
-    let mut free = std::collections::BTreeSet::new();
-    let mut occupied = std::collections::BTreeSet::new();
-    let mut keys = Vec::new();
-    let ends = hits.iter().map(|p| {
-        let d = p - origin;
-        match d.norm() <= max_range {
-            true => (*p, true),
-            false => (origin + d * (max_range / d.norm()), false),
-        }
-    });
-    let carves = misses.iter().map(|d| (origin + d * max_range, false));
-    for (end, hit) in ends.chain(carves) {
-        keys.clear();
-        ray_keys(tree, origin, &end, &mut keys);
+    let mut free = BTreeSet::new();
+    let mut occupied = BTreeSet::new();
+    let o = origin.map(|c| c as f32);
+    let max_range_f32 = max_range as f32;
+    let far = misses.iter().map(|d| origin + d * (2.0 * max_range));
+    for p in hits.iter().copied().chain(far) {
+        let p = p.map(|c| c as f32);
+        let d = p - o;
+        let norm = f64::from(d.x * d.x + d.y * d.y + d.z * d.z).sqrt();
+        let (end, hit) = if norm <= f64::from(max_range_f32) {
+            (p, true)
+        } else {
+            let direction = d / norm as f32;
+            (o + direction * max_range_f32, false)
+        };
+        let (origin, end) = (o.map(f64::from), end.map(f64::from));
+        let keys = octomap_ray_keys(tree.resolution(), &origin, &end);
         free.extend(keys.iter().map(Key::morton));
-        if let (true, Some(k)) = (hit, tree.key(&end)) {
-            occupied.insert(k.morton());
+        if let (true, Some(key)) = (hit, octomap_key(tree.resolution(), &end)) {
+            occupied.insert(key.morton());
         }
     }
     for code in free.difference(&occupied) {
@@ -186,36 +192,36 @@ fn bitmap_and_hash_set_scans_equal_the_ray_by_ray_reference() {
 
 #[test]
 fn a_walk_that_ends_past_its_end_cell_marks_that_cell() {
-    // Ends on a cell border (found by search): rounding takes the walk
-    // one cell past the end point's cell, outside the box of the two
-    // keys (which the bitmap's margin covers), as OctoMap's walk does.
+    // Ends on a cell border (`float` points, found by search): rounding
+    // takes the walk one cell past the end point's cell, outside the box of
+    // the two keys (which the bitmap's margin covers), as OctoMap's walk
+    // does.
     let rays = [
         (
-            Point3::new(
-                -0.2546680671784336,
-                -0.06507525711710072,
-                -0.03859000907231325,
-            ),
-            Point3::new(0.6000000000000001, -0.65, 0.06342557812337679),
+            [0.1272536814212799, -0.18958012759685516, 0.4837588965892792],
+            [-1.850000023841858, -1.399999976158142, 0.8824385404586792],
         ),
         (
-            Point3::new(
-                0.010572242943098331,
-                -0.19607791273795705,
-                0.7206802121117919,
-            ),
-            Point3::new(1.1, -1.8, -0.23415381068819752),
+            [
+                0.14671148359775543,
+                0.14392191171646118,
+                0.13756421208381653,
+            ],
+            [
+                -1.3000000715255737,
+                -1.2121376991271973,
+                0.05000000074505806,
+            ],
         ),
     ];
-    for (origin, end) in rays {
-        let tree = Octree::new(0.05);
-        let mut keys = Vec::new();
-        ray_keys(&tree, &origin, &end, &mut keys);
-        let stop = tree.key(&end).unwrap();
-        assert!(
-            keys.iter().any(|k| k.0[1] < stop.0[1]),
-            "the case is exercised"
-        );
+    for (origin, end) in rays.map(|(o, e)| (Point3::from(o), Point3::from(e))) {
+        let keys = octomap_ray_keys(0.05, &origin, &end);
+        let stop = octomap_key(0.05, &end).unwrap();
+        let d = end - origin;
+        let past = |k: &Key| {
+            (0..3).any(|a| (k.0[a] as i64 - stop.0[a] as i64) as f64 * d[a].signum() > 0.0)
+        };
+        assert!(keys.iter().any(past), "the case is exercised");
         assert_every_walk_matches_the_reference(0.05, &origin, &[end], &[], 5.0);
     }
 }
@@ -348,24 +354,20 @@ fn assert_lanes_walk_as_one(
     let max_range = 2.0;
     let origin = *origin;
     let tree = Octree::new(res);
-    let start = tree.key(&origin).unwrap();
-    let ends = ScanEnds {
-        hits,
-        misses,
-        float_rays: &[],
-    };
-    let (lo, hi) = key_box(&tree, start, &origin, ends, max_range);
+    let start = octomap_key(res, &origin).unwrap();
+    let (lo, hi) = key_box(&tree, start, &origin, (hits, misses), max_range);
     let walked = |lanes: bool, wide: bool, alone: bool| {
         let (mut free, mut occupied) = (CellSet::default(), CellSet::default());
-        let lo = lo.map(|v| v - 1);
-        let hi = hi.map(|v| v + 1);
+        let lo = lo.map(|v| v - 2);
+        let hi = hi.map(|v| v + 2);
         free.reset(lo, hi, DENSE_LIMIT);
         occupied.reset(lo, hi, DENSE_LIMIT);
         let dense = DenseWalk {
             tree: &tree,
             origin,
+            float_origin: float::point(&origin),
+            factor: 1.0 / res,
             max_range,
-            centre: tree.center(&start, 16),
             start: free.index(&start),
             start_key: start,
             free: &free,
@@ -437,18 +439,29 @@ fn a_scan_with_ends_outside_the_tree_walks_the_others() {
     assert!(leaves > 100, "{leaves} leaves");
 }
 
+/// OctoMap's `coordToKeyChecked` of the `float` point `p`, transcribed:
+/// `floor(x · (1/res)) + 2¹⁵` if in `[0, 2¹⁶)` on every axis.
+fn octomap_key(res: f64, p: &Point3) -> Option<Key> {
+    let factor = 1.0 / res;
+    let mut key = [0u16; 3];
+    for (k, c) in key.iter_mut().zip(p.iter()) {
+        let scaled = (f64::from(*c as f32) * factor).floor() + CENTER as f64;
+        if !(0.0..65536.0).contains(&scaled) {
+            return None;
+        }
+        *k = scaled as u16;
+    }
+    Some(Key(key))
+}
+
 /// OctoMap's `computeRayKeys` of one `float` ray, transcribed: its keys
 /// (`floor(x · (1/res))`), its `float` direction and length, its `double`
 /// crossings; every cell before the end's.
 fn octomap_ray_keys(res: f64, origin: &Point3, end: &Point3) -> Vec<Key> {
-    let factor = 1.0 / res;
-    let key = |p: &Point3| {
-        Key(std::array::from_fn(|i| {
-            (floor(p[i] * factor) + CENTER) as u16
-        }))
-    };
     let (o, e) = (origin.map(|c| c as f32), end.map(|c| c as f32));
-    let (start, stop) = (key(origin), key(end));
+    let (Some(start), Some(stop)) = (octomap_key(res, origin), octomap_key(res, end)) else {
+        return Vec::new();
+    };
     if start == stop {
         return Vec::new();
     }
@@ -496,11 +509,11 @@ fn octomap_ray_keys(res: f64, origin: &Point3, end: &Point3) -> Vec<Key> {
 
 #[test]
 fn a_discretized_scan_is_octomaps_discrete_update_every_way_it_is_walked() {
-    // Hits and no-return beams from a float origin, reduced as OctoMap's
-    // `insertPointCloud(..., discretize = true)` reduces them, against
-    // OctoMap's walk transcribed above: each cell's class and count. (Rays
-    // to cell centres tie between axes often enough that walking them in
-    // `f64` instead of OctoMap's `float` fails here.)
+    // Hits and no-return beams, reduced as OctoMap's `insertPointCloud(...,
+    // discretize = true)` reduces them, against OctoMap's update
+    // transcribed: each cell's class and count. (Rays to cell centres tie
+    // between axes often enough that walking them in `f64` instead of
+    // OctoMap's `float` fails here.)
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     let (res, max_range) = (0.05, 1.2);
     let origin = Point3::new(0.013, -0.031, 0.257);
@@ -513,43 +526,11 @@ fn a_discretized_scan_is_octomaps_discrete_update_every_way_it_is_walked() {
         .collect();
     let misses: Vec<Vector3> = (0..300).map(|_| direction(&mut rng)).collect();
     let mut scan = DiscreteScan::default();
-    let start = scan.fill(res, &origin, (&hits, &misses), max_range);
-    let rays = scan.ends().float_rays;
-    assert!(rays.len() < hits.len() + misses.len() && rays.iter().any(|r| !r.hit));
-    let mut reference = Octree::new(res);
-    let (mut free, mut occupied) = (BTreeSet::new(), BTreeSet::new());
-    for ray in rays {
-        free.extend(
-            octomap_ray_keys(res, &start, &ray.point)
-                .iter()
-                .map(Key::morton),
-        );
-        if ray.hit {
-            occupied.insert(reference.key(&ray.point).unwrap().morton());
-        }
-    }
-    for code in free.difference(&occupied) {
-        reference.update(&Key::from_morton(*code), LOG_ODDS_MISS, Clamp::OCTOMAP);
-    }
-    for code in &occupied {
-        reference.update(&Key::from_morton(*code), LOG_ODDS_HIT, Clamp::OCTOMAP);
-    }
-    for ((dense_limit, one_at_a_time), alone) in
-        WALKS.into_iter().flat_map(|w| [(w, false), (w, true)])
-    {
-        let mut tree = Octree::new(res);
-        let mut updater = RayUpdater {
-            dense_limit,
-            one_at_a_time,
-            alone,
-            ..RayUpdater::default()
-        };
-        updater.find_cells(&tree, &start, scan.ends(), max_range);
-        updater.apply(&mut tree);
-        assert_eq!(
-            tree.leaves(),
-            reference.leaves(),
-            "{dense_limit:?} {one_at_a_time} alone {alone}"
-        );
-    }
+    let tree = Octree::new(res);
+    let centres = scan
+        .fill(&tree, &origin, (&hits, &misses), max_range)
+        .to_vec();
+    assert!(centres.len() < hits.len() + misses.len());
+    let leaves = assert_every_walk_matches_the_reference(res, &origin, &centres, &[], max_range);
+    assert!(leaves > 1000, "{leaves} leaves");
 }
