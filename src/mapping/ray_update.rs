@@ -102,27 +102,8 @@ impl Dda {
         let diff = end - origin;
         let length = diff.norm();
         let dir = diff / length;
-        let mut step = [0i32; 3];
-        let mut t_max = [f64::MAX; 3];
-        let mut t_delta = [f64::MAX; 3];
-        for i in 0..3 {
-            if dir[i] > 0.0 {
-                step[i] = 1;
-            } else if dir[i] < 0.0 {
-                step[i] = -1;
-            }
-            if step[i] != 0 {
-                let border = centre[i] + step[i] as f64 * res * 0.5;
-                t_max[i] = (border - origin[i]) / dir[i];
-                t_delta[i] = res / dir[i].abs();
-            }
-        }
-        Dda {
-            length,
-            step,
-            t_max,
-            t_delta,
-        }
+        let border = |i: usize, step: i32| centre[i] + f64::from(step) * res * 0.5;
+        Self::crossings(res, origin.coords.into(), dir.into(), length, border)
     }
 
     /// OctoMap's set-up (`computeRayKeys`) of the walk from `origin`, in
@@ -137,6 +118,26 @@ impl Dda {
         let d = e - o;
         let length = float::norm(&d) as f32;
         let dir = d.map(|c| c / length);
+        // keyToCoord, then the half cell as a `float`.
+        let border = |i: usize, step: i32| {
+            float::centre(start.0[i], res) + f64::from((f64::from(step) * res * 0.5) as f32)
+        };
+        let (o, dir) = (o.map(f64::from), dir.map(f64::from));
+        Self::crossings(res, o.into(), dir.into(), f64::from(length), border)
+    }
+
+    /// The walk of `length` along the unit `dir` from `origin`: its step
+    /// along each axis, the first crossing of the start cell's border there
+    /// (`border(axis, step)`) and the spacing of the crossings, each in
+    /// `f64` (OctoMap's `double`).
+    #[inline(always)]
+    fn crossings(
+        res: f64,
+        origin: [f64; 3],
+        dir: [f64; 3],
+        length: f64,
+        border: impl Fn(usize, i32) -> f64,
+    ) -> Self {
         let mut step = [0i32; 3];
         let mut t_max = [f64::MAX; 3];
         let mut t_delta = [f64::MAX; 3];
@@ -147,15 +148,12 @@ impl Dda {
                 step[i] = -1;
             }
             if step[i] != 0 {
-                // keyToCoord, then the half cell as a `float`.
-                let border = float::centre(start.0[i], res)
-                    + f64::from((f64::from(step[i]) * res * 0.5) as f32);
-                t_max[i] = (border - f64::from(o[i])) / f64::from(dir[i]);
-                t_delta[i] = res / f64::from(dir[i]).abs();
+                t_max[i] = (border(i, step[i]) - origin[i]) / dir[i];
+                t_delta[i] = res / dir[i].abs();
             }
         }
         Dda {
-            length: f64::from(length),
+            length,
             step,
             t_max,
             t_delta,
