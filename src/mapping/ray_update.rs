@@ -30,6 +30,14 @@ pub fn ray_keys(tree: &Octree, origin: &Point3, end: &Point3, out: &mut Vec<Key>
     true
 }
 
+/// The point a beam without return along `direction` (unit) enters
+/// OctoMap's `insertPointCloud` as, from the scan's `origin`: twice the
+/// maximum range away, so that OctoMap cuts it to free space at that range
+/// (`--export-rays` writes it; the ray update casts it).
+pub fn no_return_point(origin: &Point3, direction: &Vector3, max_range: f64) -> Point3 {
+    origin + direction * (2.0 * max_range)
+}
+
 /// The walk `dda` between cells whose keys (`start`, `stop`) are known:
 /// calls `visit(key)` for each traversed cell ([`Key::packed`]).
 #[inline(always)]
@@ -361,7 +369,6 @@ pub struct RayUpdater {
 /// Where one ray of a scan ends, as OctoMap's `computeUpdate` casts it:
 /// the `float` point, and whether it is a measured hit (else the ray is cut
 /// at the maximum range and only carves).
-#[derive(Clone, Copy, Debug, PartialEq)]
 struct RayEnd {
     point: Point3,
     hit: bool,
@@ -380,10 +387,9 @@ impl RayEnd {
         }
     }
 
-    /// The ray of a beam without return along `direction` (unit): its point
-    /// at twice `max_range` from the scan's `origin`, as `--export-rays`
-    /// gives it to OctoMap, cast from the `float` origin and so cut at
-    /// `max_range` ([`RayEnd::of_hit`]).
+    /// The ray of a beam without return along `direction` (unit): its
+    /// [`no_return_point`] from the scan's `origin`, cast from the `float`
+    /// origin and so cut at `max_range` ([`RayEnd::of_hit`]).
     #[inline(always)]
     fn of_miss(
         origin: &Point3,
@@ -391,11 +397,8 @@ impl RayEnd {
         direction: &Vector3,
         max_range: f64,
     ) -> Self {
-        RayEnd::of_hit(
-            float_origin,
-            &(origin + direction * (2.0 * max_range)),
-            max_range,
-        )
+        let far = no_return_point(origin, direction, max_range);
+        RayEnd::of_hit(float_origin, &far, max_range)
     }
 }
 

@@ -368,7 +368,9 @@ pub fn write_rays(path: &Path, view: &MapperView, scans: &[Scan], offset: &Vecto
             out.extend_from_slice(&(*v as f32).to_le_bytes());
         }
         out.extend_from_slice(&((hits.len() + misses.len()) as u32).to_le_bytes());
-        let far = misses.iter().map(|d| origin + d * (2.0 * max_range));
+        let far = misses
+            .iter()
+            .map(|d| crate::mapping::ray_update::no_return_point(&origin, d, max_range));
         for p in hits.iter().map(|h| h + offset).chain(far) {
             for v in p.iter() {
                 out.extend_from_slice(&(*v as f32).to_le_bytes());

@@ -17,8 +17,6 @@ pub(super) struct DenseWalk<'a> {
     pub origin: Point3,
     /// The origin as the `float` point OctoMap holds: the rays start there.
     pub float_origin: Point3,
-    /// `1 / resolution`, OctoMap's `resolution_factor` ([`Octree::key`]).
-    pub factor: f64,
     pub max_range: f64,
     /// The origin's cell, as a bitmap index.
     pub start: usize,
@@ -71,7 +69,6 @@ impl<'a> DenseWalk<'a> {
             tree: scan.tree,
             origin: scan.origin,
             float_origin: float::point(&scan.origin),
-            factor: 1.0 / scan.tree.resolution(),
             max_range: scan.max_range,
             start: free.index(&scan.start),
             start_key: scan.start,

@@ -29,8 +29,9 @@ impl DiscreteScan {
     /// ([`RayUpdater::find_cells`](super::RayUpdater::find_cells), which
     /// cuts those beyond the maximum range as OctoMap does).
     ///
-    /// A no-return beam along `direction` enters as its point at twice
-    /// `max_range` from `origin`, as `--export-rays` hands it to OctoMap.
+    /// A no-return beam enters as its
+    /// [`no_return_point`](super::no_return_point), as `--export-rays`
+    /// hands it to OctoMap.
     /// OctoMap keys the `float` points it is given and casts to the `float`
     /// centres of their cells ([`Octree::key`], [`float::centre`]): so here.
     /// A point outside the tree's cube is left out (OctoMap's unchecked key
@@ -46,7 +47,9 @@ impl DiscreteScan {
         self.centres.clear();
         self.recent.clear();
         self.recent.resize(RECENT_SLOTS, u64::MAX);
-        let far = misses.iter().map(|d| origin + d * (2.0 * max_range));
+        let far = misses
+            .iter()
+            .map(|d| super::no_return_point(origin, d, max_range));
         for point in hits.iter().copied().chain(far) {
             let Some(key) = tree.key(&float::point(&point)) else {
                 continue;

@@ -130,7 +130,8 @@ fn float_norm(v: [__m256d; 3]) -> __m256d {
 fn begin_four(dense: &DenseWalk, point: [__m256d; 3], hit: i32, walks: &mut Vec<Walk>) {
     let resolution = dense.tree.resolution();
     let res = _mm256_set1_pd(resolution);
-    let factor = _mm256_set1_pd(dense.factor);
+    // OctoMap's `resolution_factor`, as `Octree::key` computes it.
+    let factor = _mm256_set1_pd(1.0 / resolution);
     // OctoMap's half cell, a `float`.
     let half = f64::from((resolution * 0.5) as f32);
     let origin = dense.float_origin;

@@ -366,7 +366,6 @@ fn assert_lanes_walk_as_one(
             tree: &tree,
             origin,
             float_origin: float::point(&origin),
-            factor: 1.0 / res,
             max_range,
             start: free.index(&start),
             start_key: start,
