@@ -209,6 +209,17 @@ fn bad_chain_files_exit_2() {
     }
     let out = sigmap(&["propagate", "nope.toml", "--point", "1,2"]);
     assert_eq!(out.status.code(), Some(2));
+    // An experiment file given where the chain file goes is named as one.
+    let quickstart = common::root().join("experiments/quickstart.toml");
+    let out = sigmap(&["propagate", quickstart.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains(
+            "quickstart.toml: is an experiment file; `sigmap propagate` takes a chain file"
+        ),
+        "{stderr}"
+    );
 }
 
 #[test]

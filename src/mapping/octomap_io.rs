@@ -139,20 +139,21 @@ pub fn read_octree(path: &Path, clamp: Clamp) -> Result<Octree> {
 /// Parses the bytes of a `.ot` or `.bt` file.
 pub fn parse(bytes: &[u8], clamp: Clamp) -> std::result::Result<Octree, String> {
     let mut reader = std::io::Cursor::new(bytes);
-    let mut first = String::new();
-    reader.read_line(&mut first).map_err(|e| e.to_string())?;
-    let binary = match first.trim_end() {
-        OT_HEADER => false,
-        BT_HEADER => true,
-        other => return Err(format!("not an OctoMap file (first line '{other}')")),
+    let binary = match header_line(&mut reader).as_deref() {
+        Some(OT_HEADER) => false,
+        Some(BT_HEADER) => true,
+        Some(other) => return Err(format!("not an OctoMap file (first line '{other}')")),
+        None => return Err("not an OctoMap file (its first line is not text)".into()),
     };
     let (mut size, mut resolution, mut id) = (None, None, None);
     loop {
-        let mut line = String::new();
-        if reader.read_line(&mut line).map_err(|e| e.to_string())? == 0 {
+        if reader.position() >= bytes.len() as u64 {
             return Err("no `data` line".into());
         }
-        let line = line.trim_end();
+        let Some(line) = header_line(&mut reader) else {
+            return Err("a header line before `data` is not text".into());
+        };
+        let line = line.as_str();
         if line.starts_with('#') || line.is_empty() {
             continue;
         }
@@ -193,6 +194,16 @@ pub fn parse(bytes: &[u8], clamp: Clamp) -> std::result::Result<Octree, String> 
         return Err(format!("header says {size} nodes, the data holds {read}"));
     }
     Ok(tree)
+}
+
+/// The next header line without its line end; `None` when it is not text
+/// (UTF-8).
+fn header_line(reader: &mut std::io::Cursor<&[u8]>) -> Option<String> {
+    let mut line = Vec::new();
+    // Reading from memory cannot fail.
+    reader.read_until(b'\n', &mut line).ok()?;
+    let line = String::from_utf8(line).ok()?;
+    Some(line.trim_end().to_string())
 }
 
 /// A file whose tree goes deeper than OctoMap's 16 levels.

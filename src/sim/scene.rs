@@ -106,7 +106,7 @@ struct WorkspaceSpec {
 }
 
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(untagged, expecting = "scale: a number, or three numbers [x, y, z]")]
 enum Scale {
     Uniform(f64),
     PerAxis([f64; 3]),

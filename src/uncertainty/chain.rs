@@ -144,11 +144,28 @@ fn spec(sigma: Option<&Vec<f64>>, covariance: Option<&Vec<Vec<f64>>>) -> Covaria
     }
 }
 
+/// Whether `path` reads as an experiment file (TOML with a `scene` and a
+/// `[robot]`), given where a chain file belongs.
+fn is_experiment(path: &Path) -> bool {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return false;
+    };
+    toml::from_str::<toml::Table>(&text)
+        .is_ok_and(|table| table.contains_key("scene") && table.contains_key("robot"))
+}
+
 /// Reads a chain file (the `sigmap propagate` format, see docs/cli.md): the chain
 /// and, if the file has a `[point]`, the measurement.
 pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainPoint>)> {
-    let file: ChainFile = read_toml(path)?;
     let bad = |msg: String| Error::input(path, msg);
+    let file: ChainFile = read_toml(path).map_err(|e| match is_experiment(path) {
+        true => bad(
+            "is an experiment file; `sigmap propagate` takes a chain file ([[transform]]s and \
+             a [point], docs/cli.md \"Chain file\")"
+                .into(),
+        ),
+        false => e,
+    })?;
     if file.transforms.is_empty() {
         return Err(bad("the chain has no [[transform]]".into()));
     }

@@ -42,7 +42,7 @@ pub struct SweepAxis {
 
 /// A sweep value.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(untagged)]
+#[serde(untagged, expecting = "a sweep value: a number or a string")]
 pub enum SweepValue {
     /// A number.
     Number(f64),

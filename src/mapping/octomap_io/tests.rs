@@ -82,6 +82,17 @@ fn corrupt_files_are_rejected() {
     assert!(parse(b"hello\n", Clamp::OCTOMAP)
         .unwrap_err()
         .contains("not an OctoMap file"));
+    // Binary bytes where the header's text should be are named as such.
+    let error = parse(&[0xff, 0xfe, 0x00, b'\n'], Clamp::OCTOMAP).unwrap_err();
+    assert_eq!(error, "not an OctoMap file (its first line is not text)");
+    let mut bad = b"# Octomap OcTree file\n".to_vec();
+    bad.extend_from_slice(&[0xc3, 0x28, b'\n']);
+    let error = parse(&bad, Clamp::OCTOMAP).unwrap_err();
+    assert_eq!(error, "a header line before `data` is not text");
+    assert_eq!(
+        parse(b"# Octomap OcTree file\nid OcTree\n", Clamp::OCTOMAP).unwrap_err(),
+        "no `data` line"
+    );
 }
 
 #[test]

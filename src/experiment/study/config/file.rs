@@ -56,7 +56,10 @@ pub(super) struct ExperimentFile {
 /// `beam_pooling` as written: `true` / `false`, or a mode's name (a string,
 /// so that a sweep can take the modes: `"off"`, `"faces"`, `"windows"`).
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "beam_pooling: true, false, \"windows\", \"faces\" or \"off\""
+)]
 pub(super) enum PoolingSpec {
     Switch(bool),
     Named(String),
@@ -81,7 +84,10 @@ impl PoolingSpec {
 /// `seeds` as written: a list (`[1, 2, 3]`) or an inclusive range
 /// (`"1..40"`, also written `"1..=40"`: forty seeds).
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "seeds: a list of whole numbers (seeds = [1, 2, 3]) or an inclusive range (seeds = \"1..40\")"
+)]
 pub(super) enum SeedsSpec {
     List(Vec<u64>),
     Range(String),
@@ -123,7 +129,10 @@ impl SeedsSpec {
 /// `risk` as written: a level ε, or `"off"` (a string, so that a sweep can
 /// take both).
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "risk: a probability between 1e-9 and 0.5, or \"off\""
+)]
 pub(super) enum RiskSpec {
     Level(f64),
     Named(String),
@@ -145,7 +154,10 @@ impl RiskSpec {
 /// A switch as written: `true` / `false`, or `"on"` / `"off"` (a string, so
 /// that a sweep can take both).
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "interpolate_beams: true or \"on\", false or \"off\""
+)]
 pub(super) enum SwitchSpec {
     Switch(bool),
     Named(String),

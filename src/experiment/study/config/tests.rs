@@ -1,4 +1,4 @@
-use super::file::{PoolingSpec, SeedsSpec, SwitchSpec};
+use super::file::{PoolingSpec, RiskSpec, SeedsSpec, SwitchSpec};
 use super::*;
 use crate::mapping::pooling::Pooling;
 use crate::mapping::settings::{MapSettings, OpdfDefaults, SampleGate};
@@ -298,6 +298,41 @@ fn seeds_read_a_list_or_an_inclusive_range() {
     assert!(error.contains("18446744073709551616 seeds"), "{error}");
     assert!(read("seeds = \"1..1000\"").is_ok());
     assert!(read("seeds = \"1..1001\"").is_err());
+}
+
+#[test]
+fn a_setting_of_the_wrong_type_says_what_to_write() {
+    #[derive(Deserialize)]
+    #[allow(dead_code)]
+    struct File {
+        seeds: Option<SeedsSpec>,
+        beam_pooling: Option<PoolingSpec>,
+        interpolate_beams: Option<SwitchSpec>,
+        risk: Option<RiskSpec>,
+    }
+    for (text, says) in [
+        (
+            "seeds = -3",
+            "seeds: a list of whole numbers (seeds = [1, 2, 3]) or an inclusive range",
+        ),
+        ("seeds = [1, -2]", "seeds: a list of whole numbers"),
+        (
+            "beam_pooling = 3",
+            "beam_pooling: true, false, \"windows\", \"faces\" or \"off\"",
+        ),
+        (
+            "interpolate_beams = 1",
+            "interpolate_beams: true or \"on\", false or \"off\"",
+        ),
+        (
+            "risk = [0.1]",
+            "risk: a probability between 1e-9 and 0.5, or \"off\"",
+        ),
+    ] {
+        let error = toml::from_str::<File>(text).err().unwrap().to_string();
+        assert!(error.contains(says), "{text}: {error}");
+        assert!(!error.contains("untagged"), "{text}: {error}");
+    }
 }
 
 #[test]
