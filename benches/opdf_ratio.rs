@@ -6,8 +6,8 @@
 //! the median times and the mean of the rounds' ratios (unscented / ray
 //! update) with its 95% t-interval, against the target of at most 2x
 //! (docs/performance.md, "Where the ray update's time goes"); then, per
-//! resolution, where one unscented map's time goes (its steps summed over
-//! the scans, the least of three maps).
+//! resolution, where one unscented map's and one ray update's time goes
+//! (their steps summed over the scans, the least of three maps).
 
 mod common;
 
@@ -67,26 +67,35 @@ fn main() {
             mean - half,
             mean + half,
         );
-        // Where an unscented map's time goes: each step the least of three
-        // maps.
-        let mut least = [f64::INFINITY; 4];
-        for _ in 0..3 {
-            let times = PhaseTimes::default();
-            let extras = BuildExtras {
-                phases: Some(&times),
-                ..BuildExtras::default()
-            };
-            let spec = (Method::Unscented, resolution);
-            drop(map_on(&one, &experiment, &run, spec, extras));
-            for (l, phase) in least.iter_mut().zip(Phase::ALL) {
-                *l = l.min(times.seconds(phase));
+        // Where each map's time goes: each step the least of three maps.
+        for (method, phases) in [
+            (Method::Unscented, &Phase::ALL[..]),
+            (Method::RayUpdate, &Phase::RAY_UPDATE[..]),
+        ] {
+            let mut least = vec![f64::INFINITY; phases.len()];
+            for _ in 0..3 {
+                let times = PhaseTimes::default();
+                let extras = BuildExtras {
+                    phases: Some(&times),
+                    ..BuildExtras::default()
+                };
+                drop(map_on(
+                    &one,
+                    &experiment,
+                    &run,
+                    (method, resolution),
+                    extras,
+                ));
+                for (l, &phase) in least.iter_mut().zip(phases) {
+                    *l = l.min(times.seconds(phase));
+                }
             }
+            let steps: Vec<String> = phases
+                .iter()
+                .zip(least)
+                .map(|(phase, s)| format!("{} {:.1} ms", phase.as_str(), s * 1e3))
+                .collect();
+            println!("          {method}'s steps: {}", steps.join(", "));
         }
-        let steps: Vec<String> = Phase::ALL
-            .iter()
-            .zip(least)
-            .map(|(phase, s)| format!("{} {:.1} ms", phase.as_str(), s * 1e3))
-            .collect();
-        println!("          unscented's steps: {}", steps.join(", "));
     }
 }

@@ -42,8 +42,7 @@ pub struct BuildExtras<'a> {
     /// The most bytes the map's node pools may take ([`Octree::pool_bytes`],
     /// checked after each scan); `None`: [`MAX_MAP_BYTES`].
     pub max_bytes: Option<usize>,
-    /// Where an OPDF map's time goes, summed here step by step (the ray
-    /// update leaves it as it is).
+    /// Where a map's time goes, summed here step by step ([`Phase`]).
     pub phases: Option<&'a PhaseTimes>,
 }
 
@@ -204,13 +203,15 @@ fn ray_update_map(
         // Every thread prepares its own scan; the last, with nothing beside
         // it, is spread over the pool.
         updater.walk_alone(i + 1 < scans.len());
-        if discretized {
-            let ends = (&hits[..], &misses[..]);
-            let centres = discrete.fill(&geometry, &origin, ends, view.max_range);
-            updater.find_cells(&geometry, &origin, centres, &[], view.max_range);
-        } else {
-            updater.find_cells(&geometry, &origin, &hits, &misses, view.max_range);
-        }
+        timed(extras.phases, Phase::RayWalk, || {
+            if discretized {
+                let ends = (&hits[..], &misses[..]);
+                let centres = discrete.fill(&geometry, &origin, ends, view.max_range);
+                updater.find_cells(&geometry, &origin, centres, &[], view.max_range);
+            } else {
+                updater.find_cells(&geometry, &origin, &hits, &misses, view.max_range);
+            }
+        });
         Ok(RayScan {
             updater,
             hits,
@@ -219,7 +220,9 @@ fn ray_update_map(
         })
     };
     insert_scans(&mut tree, scans.len(), &extras, find, |tree, found| {
-        found.updater.apply(tree);
+        timed(extras.phases, Phase::TreeUpdate, || {
+            found.updater.apply(tree)
+        });
         if let Ok(mut spare) = spare.lock() {
             spare.push(found);
         }

@@ -1,11 +1,13 @@
-//! Where an OPDF map's time goes: each step of each grid timed and summed
-//! over the scans ([`BuildExtras::phases`](super::BuildExtras)), for the
-//! benchmarks that say what a map costs.
+//! Where a map's time goes: each step of each OPDF grid, or of each scan of
+//! the ray update, timed and summed over the scans
+//! ([`BuildExtras::phases`](super::BuildExtras)), for the benchmarks that say
+//! what a map costs.
 
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::Instant;
 
-/// The steps of an OPDF map whose time is summed.
+/// The steps of a map whose time is summed: an OPDF map's four
+/// ([`Phase::ALL`]), the ray update's two ([`Phase::RAY_UPDATE`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Phase {
     /// Each scan's local grid: propagation, bins, nearest surfaces, samples.
@@ -16,11 +18,19 @@ pub enum Phase {
     Search,
     /// The search's changes applied to the tree.
     Apply,
+    /// The ray update's cells of a scan: its rays walked and the cells met
+    /// listed (a discretized insertion's end cells first found).
+    RayWalk,
+    /// The ray update's cells of a scan applied to the tree: its upkeep.
+    TreeUpdate,
 }
 
 impl Phase {
-    /// Every phase, in the order a grid goes through them.
+    /// An OPDF map's phases, in the order a grid goes through them.
     pub const ALL: [Phase; 4] = [Phase::Grid, Phase::Index, Phase::Search, Phase::Apply];
+
+    /// The ray update's phases, in the order a scan goes through them.
+    pub const RAY_UPDATE: [Phase; 2] = [Phase::RayWalk, Phase::TreeUpdate];
 
     /// Its name in a report.
     pub fn as_str(self) -> &'static str {
@@ -29,6 +39,8 @@ impl Phase {
             Phase::Index => "surface-cell index",
             Phase::Search => "merge search",
             Phase::Apply => "apply",
+            Phase::RayWalk => "ray walk",
+            Phase::TreeUpdate => "tree update",
         }
     }
 }
@@ -37,7 +49,7 @@ impl Phase {
 /// several threads, thread time: more than the wall time).
 #[derive(Debug, Default)]
 pub struct PhaseTimes {
-    nanos: [AtomicU64; 4],
+    nanos: [AtomicU64; 6],
 }
 
 impl PhaseTimes {

@@ -364,7 +364,7 @@ fn a_map_that_outgrows_its_memory_budget_stops_with_one_line() {
 }
 
 #[test]
-fn an_opdf_map_times_its_phases_and_is_the_same_map() {
+fn a_map_times_its_phases_and_is_the_same_map() {
     let experiment = quickstart();
     let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
     let view = experiment.mapper_view();
@@ -388,19 +388,25 @@ fn an_opdf_map_times_its_phases_and_is_the_same_map() {
     for phase in Phase::ALL {
         assert!(times.seconds(phase) > 0.0, "{}", phase.as_str());
     }
-    // The ray update has none of these steps.
-    let ray_times = PhaseTimes::default();
-    build_map_with(
-        &view,
-        &run.scans,
-        BuildExtras {
+    assert!(Phase::RAY_UPDATE.iter().all(|&p| times.seconds(p) == 0.0));
+    // The ray update has none of these steps, but its own two.
+    for method in [Method::RayUpdate, Method::RayUpdateDiscrete] {
+        let ray_times = PhaseTimes::default();
+        let ray_build = |extras| {
+            build_map_with(&view, &run.scans, extras, method, 0.05, &Vector3::zeros()).unwrap()
+        };
+        let timed = ray_build(BuildExtras {
             phases: Some(&ray_times),
             ..BuildExtras::default()
-        },
-        Method::RayUpdate,
-        0.05,
-        &Vector3::zeros(),
-    )
-    .unwrap();
-    assert!(Phase::ALL.iter().all(|&p| ray_times.seconds(p) == 0.0));
+        });
+        assert!(timed == ray_build(BuildExtras::default()), "{method}");
+        assert!(Phase::ALL.iter().all(|&p| ray_times.seconds(p) == 0.0));
+        for phase in Phase::RAY_UPDATE {
+            assert!(
+                ray_times.seconds(phase) > 0.0,
+                "{method}: {}",
+                phase.as_str()
+            );
+        }
+    }
 }
