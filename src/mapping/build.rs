@@ -221,7 +221,7 @@ fn ray_update_map(
     };
     insert_scans(&mut tree, scans.len(), &extras, find, |tree, found| {
         timed(extras.phases, Phase::TreeUpdate, || {
-            found.updater.apply(tree)
+            found.updater.apply(tree);
         });
         if let Ok(mut spare) = spare.lock() {
             spare.push(found);
