@@ -10,6 +10,7 @@
 use super::CellSet;
 use crate::mapping::octree::Key;
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 /// Blocks listed per parallel task.
@@ -47,22 +48,56 @@ impl CellSet {
         debug_assert!(self.min.iter().all(|m| m % 8 == 0) && self.dims.iter().all(|d| d % 8 == 0));
         let mut blocks = self.blocks(occupied);
         blocks.sort_unstable_by_key(|b| b.code);
+        let rows = Rows::of(self);
         let (free, taken) = (&self.bits, &occupied.bits);
-        let found: Vec<(Vec<u64>, Vec<u64>)> = blocks
-            .par_chunks(BLOCKS_PER_TASK)
+        // Each task's cells counted first, so that every task writes its
+        // codes in place: no buffer per task, no copy, and the lists keep
+        // their memory from scan to scan.
+        let tasks: Vec<&[Block]> = blocks.chunks(BLOCKS_PER_TASK).collect();
+        let counts: Vec<[usize; 2]> = tasks
+            .par_iter()
             .map(|blocks| {
-                let (mut free_codes, mut occupied_codes) = (Vec::new(), Vec::new());
-                for block in blocks {
-                    let (free_bytes, occupied_bytes) = self.block_bytes(block, free, taken);
-                    emit(&free_bytes, block.code, &mut free_codes);
-                    emit(&occupied_bytes, block.code, &mut occupied_codes);
-                }
-                (free_codes, occupied_codes)
+                blocks.iter().fold([0, 0], |[f, o], block| {
+                    let (free_bytes, occupied_bytes) = rows.block_bytes(block, free, taken);
+                    [f + ones(&free_bytes), o + ones(&occupied_bytes)]
+                })
             })
             .collect();
-        for (free, occupied_codes) in found {
-            self.codes.extend(free);
-            occupied.codes.extend(occupied_codes);
+        let total = counts
+            .iter()
+            .fold([0, 0], |[f, o], [tf, to]| [f + tf, o + to]);
+        let (free_codes, occupied_codes) = (&mut self.codes, &mut occupied.codes);
+        free_codes.clear();
+        occupied_codes.clear();
+        free_codes.reserve(total[0]);
+        occupied_codes.reserve(total[1]);
+        let mut free_rest = &mut free_codes.spare_capacity_mut()[..total[0]];
+        let mut occupied_rest = &mut occupied_codes.spare_capacity_mut()[..total[1]];
+        let mut jobs = Vec::with_capacity(tasks.len());
+        for (blocks, &[f, o]) in tasks.into_iter().zip(&counts) {
+            let (free_out, rest) = std::mem::take(&mut free_rest).split_at_mut(f);
+            free_rest = rest;
+            let (occupied_out, rest) = std::mem::take(&mut occupied_rest).split_at_mut(o);
+            occupied_rest = rest;
+            jobs.push((blocks, free_out, occupied_out));
+        }
+        jobs.into_par_iter()
+            .for_each(|(blocks, free_out, occupied_out)| {
+                let (mut f, mut o) = (0, 0);
+                for block in blocks {
+                    let (free_bytes, occupied_bytes) = rows.block_bytes(block, free, taken);
+                    emit(&free_bytes, block.code, free_out, &mut f);
+                    emit(&occupied_bytes, block.code, occupied_out, &mut o);
+                }
+                // Every slot written (`emit` cannot write past the end).
+                assert!(f == free_out.len() && o == occupied_out.len());
+            });
+        // SAFETY: the first `total` slots of each list's spare capacity were
+        // handed out above as disjoint slices, and each task wrote every
+        // slot of its own (asserted), so they are initialised.
+        unsafe {
+            free_codes.set_len(total[0]);
+            occupied_codes.set_len(total[1]);
         }
     }
 
@@ -100,25 +135,48 @@ impl CellSet {
     /// Row `y` of plane `z` of the block row `(by, bz)`, as a row of the box.
     #[inline]
     fn row_index(&self, by: usize, bz: usize, y: usize, z: usize) -> usize {
-        (bz * 8 + z) * self.dims[1] + by * 8 + y
+        Rows::of(self).row_index(by, bz, y, z)
+    }
+}
+
+/// The rows of a set's bitmap: what listing a block needs of its layout.
+#[derive(Clone, Copy)]
+struct Rows {
+    /// Words per row of the box.
+    words: usize,
+    /// Rows per plane of the box (its cells along y).
+    per_plane: usize,
+}
+
+impl Rows {
+    fn of(set: &CellSet) -> Self {
+        Rows {
+            words: set.row / 64,
+            per_plane: set.dims[1],
+        }
+    }
+
+    /// Row `y` of plane `z` of the block row `(by, bz)`, as a row of the box.
+    #[inline]
+    fn row_index(self, by: usize, bz: usize, y: usize, z: usize) -> usize {
+        (bz * 8 + z) * self.per_plane + by * 8 + y
     }
 
     /// A block's free cells (not occupied) and occupied cells, a byte (8
     /// cells along x) per row `y + 8 z`.
     #[inline]
     fn block_bytes(
-        &self,
+        self,
         block: &Block,
         free: &[AtomicU64],
         taken: &[AtomicU64],
     ) -> ([u8; 64], [u8; 64]) {
-        let words_per_row = self.row / 64;
         let [bx, by, bz] = block.at;
         let shift = 8 * (bx % 8);
         let (mut free_bytes, mut occupied_bytes) = ([0u8; 64], [0u8; 64]);
         for z in 0..8 {
             for y in 0..8 {
-                let word = self.row_index(by, bz, y, z) * words_per_row + bx / 8;
+                let word = self.row_index(by, bz, y, z) * self.words + bx / 8;
                 let occupied = (taken[word].load(Relaxed) >> shift) as u8;
                 free_bytes[y + 8 * z] = (free[word].load(Relaxed) >> shift) as u8 & !occupied;
                 occupied_bytes[y + 8 * z] = occupied;
@@ -128,16 +186,26 @@ impl CellSet {
     }
 }
 
+/// The cells set in a block's bytes.
+#[inline]
+fn ones(bytes: &[u8; 64]) -> usize {
+    bytes
+        .chunks_exact(8)
+        .map(|w| u64::from_ne_bytes(w.try_into().unwrap_or([0; 8])).count_ones() as usize)
+        .sum()
+}
+
 /// The Morton code of the block `at` (in blocks from `min`, a multiple of 8
 /// on every axis), shifted to make room for the 9 bits of a cell in it.
 fn block_code(min: [u16; 3], at: [usize; 3]) -> u64 {
     Key(std::array::from_fn(|a| min[a] / 8 + at[a] as u16)).morton() << 9
 }
 
-/// Appends the Morton codes of a block's set cells (`bytes`: bit `x` of byte
-/// `y + 8 z`) to `out`, in order; `base` is the block's code.
+/// Writes the Morton codes of a block's set cells (`bytes`: bit `x` of byte
+/// `y + 8 z`) to `out` from slot `at` on, in order, and moves `at` past
+/// them; `base` is the block's code.
 #[inline]
-fn emit(bytes: &[u8; 64], base: u64, out: &mut Vec<u64>) {
+fn emit(bytes: &[u8; 64], base: u64, out: &mut [MaybeUninit<u64>], at: &mut usize) {
     for (s, &[i, j, k]) in SUB_CUBES.iter().enumerate() {
         // Two cells along x from each of the sub-cube's four rows: bit
         // x + 2 y + 4 z of the sub-cube, its Morton order.
@@ -147,7 +215,8 @@ fn emit(bytes: &[u8; 64], base: u64, out: &mut Vec<u64>) {
             | pair(2 * j, 2 * k + 1) << 4
             | pair(2 * j + 1, 2 * k + 1) << 6;
         while cells != 0 {
-            out.push(base | (s as u64) << 3 | u64::from(cells.trailing_zeros()));
+            out[*at].write(base | (s as u64) << 3 | u64::from(cells.trailing_zeros()));
+            *at += 1;
             cells &= cells - 1;
         }
     }
@@ -170,11 +239,13 @@ mod tests {
         // Boxes of every alignment, around the tree's centre (where every
         // bit of the keys changes) and away from it; sparse and dense.
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        // The same sets from round to round, as a scan's follow another's:
+        // their lists keep their memory, not their cells.
+        let (mut free, mut occupied) = (CellSet::default(), CellSet::default());
         for round in 0..40 {
             let centre: u16 = if round % 2 == 0 { 32768 } else { 1000 };
             let lo: [u16; 3] = std::array::from_fn(|_| centre - rng.random_range(1..40));
             let hi: [u16; 3] = std::array::from_fn(|a| lo[a] + rng.random_range(0..70));
-            let (mut free, mut occupied) = (CellSet::default(), CellSet::default());
             free.reset(lo, hi, usize::MAX);
             occupied.reset(lo, hi, usize::MAX);
             let density = [0.001, 0.05, 0.6][round % 3];
