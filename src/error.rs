@@ -177,9 +177,9 @@ pub fn read_toml_with<T: serde::de::DeserializeOwned>(
         Error::Input { path, .. } if path.is_file() => Error::input(
             &path,
             format!(
-                "is {} MB; a TOML input holds at most {} MB (10 000 viewpoints, the most a \
+                "is {:.1} MB; a TOML input holds at most {} MB (10 000 viewpoints, the most a \
                  run takes, fit in about 1 MB)",
-                std::fs::metadata(&path).map_or(0, |m| m.len() >> 20),
+                std::fs::metadata(&path).map_or(0.0, |m| m.len() as f64 / f64::from(1 << 20)),
                 MAX_TOML_BYTES >> 20
             ),
         ),
