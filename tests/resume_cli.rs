@@ -5,28 +5,16 @@
 
 mod common;
 
-use common::{portable_quickstart, sigmap, sigmap_ok};
+use common::{portable_quickstart, run_quickstart, sigmap};
 use sigmap::experiment::run::runner::{RunRow, TimingRow};
 use sigmap::experiment::study::journal::journal_record;
-
-fn run(out: &std::path::Path, extra: &[&str]) {
-    let mut args = vec![
-        "run",
-        "experiments/quickstart.toml",
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ];
-    args.extend_from_slice(extra);
-    sigmap_ok(&args);
-}
 
 #[test]
 fn results_do_not_depend_on_threads_and_survive_interruption() {
     let dir = tempfile::tempdir().unwrap();
     let (one, two) = (dir.path().join("one"), dir.path().join("two"));
-    run(&one, &["--threads", "1"]);
-    run(&two, &["--threads", "2"]);
+    run_quickstart(&one, &["--threads", "1"]);
+    run_quickstart(&two, &["--threads", "2"]);
     let read = |p: &std::path::Path| std::fs::read(p).unwrap();
     for file in ["runs.csv", "summary.csv", "paired.csv"] {
         assert_eq!(
@@ -75,7 +63,7 @@ fn results_do_not_depend_on_threads_and_survive_interruption() {
     let resumed = dir.path().join("resumed");
     std::fs::create_dir_all(&resumed).unwrap();
     std::fs::write(resumed.join("runs.journal.csv"), journal).unwrap();
-    run(&resumed, &[]);
+    run_quickstart(&resumed, &[]);
     let got = String::from_utf8(read(&resumed.join("runs.csv"))).unwrap();
     assert!(got.contains("0.123456"), "the whole record is reused");
     assert_eq!(got.lines().count(), lines.len());
@@ -85,11 +73,11 @@ fn results_do_not_depend_on_threads_and_survive_interruption() {
     assert_eq!(resumed_timings.lines().count(), timings.len() + 1);
     assert!(resumed_timings.contains(&format!("{}", timings[0].model_s)));
     // With --fresh everything is recomputed.
-    run(&resumed, &["--fresh"]);
+    run_quickstart(&resumed, &["--fresh"]);
     assert_eq!(read(&resumed.join("runs.csv")), read(&one.join("runs.csv")));
     assert!(!resumed.join("runs.journal.csv").exists());
     // A re-run with everything done changes nothing.
-    run(&resumed, &[]);
+    run_quickstart(&resumed, &[]);
     assert_eq!(read(&resumed.join("runs.csv")), read(&one.join("runs.csv")));
 }
 
@@ -97,10 +85,10 @@ fn results_do_not_depend_on_threads_and_survive_interruption() {
 fn shards_merge_into_the_one_machine_result() {
     let dir = tempfile::tempdir().unwrap();
     let whole = dir.path().join("whole");
-    run(&whole, &[]);
+    run_quickstart(&whole, &[]);
     let shard = |i: &str| {
         let out = dir.path().join(format!("shard{}", &i[..1]));
-        run(&out, &["--shard", i]);
+        run_quickstart(&out, &["--shard", i]);
         out
     };
     let (a, b) = (shard("1/2"), shard("2/2"));
@@ -110,15 +98,15 @@ fn shards_merge_into_the_one_machine_result() {
         read(&whole.join("runs.csv")),
         "a shard holds part of the runs"
     );
+    // `sigmap merge` of the quickstart's shard folders into `into`.
+    let merge_into = |shards: &[&std::path::Path], into: &std::path::Path| {
+        let mut args = vec!["merge", "experiments/quickstart.toml"];
+        args.extend(shards.iter().map(|d| d.to_str().unwrap()));
+        args.extend(["--out", into.to_str().unwrap()]);
+        sigmap(&args)
+    };
     let merged = dir.path().join("merged");
-    let out = sigmap(&[
-        "merge",
-        "experiments/quickstart.toml",
-        a.to_str().unwrap(),
-        b.to_str().unwrap(),
-        "--out",
-        merged.to_str().unwrap(),
-    ]);
+    let out = merge_into(&[&a, &b], &merged);
     assert!(
         out.status.success(),
         "{}",
@@ -134,13 +122,7 @@ fn shards_merge_into_the_one_machine_result() {
         assert_eq!(read(&merged.join(file)), read(&whole.join(file)), "{file}");
     }
     // A missing shard, an out-of-range shard, and a shard of another experiment are refused.
-    let out = sigmap(&[
-        "merge",
-        "experiments/quickstart.toml",
-        a.to_str().unwrap(),
-        "--out",
-        dir.path().join("m2").to_str().unwrap(),
-    ]);
+    let out = merge_into(&[&a], &dir.path().join("m2"));
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("missing"));
     let out = sigmap(&["run", "experiments/quickstart.toml", "--shard", "3/2"]);
@@ -150,10 +132,7 @@ fn shards_merge_into_the_one_machine_result() {
     // file and the row, and nothing merged.
     let merge = |dirs: &[&std::path::Path], says: &[&str]| {
         let into = dir.path().join("refused");
-        let mut args = vec!["merge", "experiments/quickstart.toml"];
-        args.extend(dirs.iter().map(|d| d.to_str().unwrap()));
-        args.extend(["--out", into.to_str().unwrap()]);
-        let out = sigmap(&args);
+        let out = merge_into(dirs, &into);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{stderr}");
         for s in says {
@@ -185,14 +164,7 @@ fn shards_merge_into_the_one_machine_result() {
         .unwrap()
         .replace("quickstart", "paper");
     std::fs::write(b.join("run.toml"), manifest).unwrap();
-    let out = sigmap(&[
-        "merge",
-        "experiments/quickstart.toml",
-        a.to_str().unwrap(),
-        b.to_str().unwrap(),
-        "--out",
-        dir.path().join("m3").to_str().unwrap(),
-    ]);
+    let out = merge_into(&[&a, &b], &dir.path().join("m3"));
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("run.toml"));
 }

@@ -4,20 +4,8 @@
 
 mod common;
 
-use common::{ok, portable_quickstart, run_into, sigmap, sigmap_ok};
+use common::{ok, portable_quickstart, run_into, run_quickstart, sigmap};
 use sigmap::experiment::run::runner::RunRow;
-
-fn run(out: &std::path::Path, extra: &[&str]) {
-    let mut args = vec![
-        "run",
-        "experiments/quickstart.toml",
-        "--out",
-        out.to_str().unwrap(),
-        "-q",
-    ];
-    args.extend_from_slice(extra);
-    sigmap_ok(&args);
-}
 
 #[test]
 fn quickstart_shows_the_paper_claims() {
@@ -25,7 +13,7 @@ fn quickstart_shows_the_paper_claims() {
     // above 3) and its map calls more truly occupied cells free than the
     // unscented map.
     let dir = tempfile::tempdir().unwrap();
-    run(dir.path(), &[]);
+    run_quickstart(dir.path(), &[]);
     let mut reader = csv::Reader::from_path(dir.path().join("summary.csv")).unwrap();
     let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
     let mean = |method: &str, metric: &str| -> f64 {

@@ -2,7 +2,7 @@
 //! any link of which may be inverted, applied to an uncertain point.
 
 use super::{CovarianceSpec, UncertainPose};
-use crate::error::{read_toml, Error, Result};
+use crate::error::{check_input_file, read_text, read_toml, Error, Result, MAX_TOML_BYTES};
 use crate::geometry::{Isometry3, Matrix3, Pose, Vector3};
 use serde::Deserialize;
 use std::path::Path;
@@ -146,25 +146,31 @@ fn spec(sigma: Option<&Vec<f64>>, covariance: Option<&Vec<Vec<f64>>>) -> Covaria
 
 /// Whether `path` reads as an experiment file (TOML with a `scene` and a
 /// `[robot]`), given where a chain file belongs.
+/// Read only within the size any TOML input may have.
 fn is_experiment(path: &Path) -> bool {
-    let Ok(text) = std::fs::read_to_string(path) else {
+    if check_input_file(path, MAX_TOML_BYTES).is_err() {
         return false;
-    };
-    toml::from_str::<toml::Table>(&text)
-        .is_ok_and(|table| table.contains_key("scene") && table.contains_key("robot"))
+    }
+    read_text(path).is_ok_and(|text| {
+        toml::from_str::<toml::Table>(&text)
+            .is_ok_and(|table| table.contains_key("scene") && table.contains_key("robot"))
+    })
 }
 
 /// Reads a chain file (the `sigmap propagate` format, see docs/cli.md): the chain
 /// and, if the file has a `[point]`, the measurement.
 pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainPoint>)> {
     let bad = |msg: String| Error::input(path, msg);
-    let file: ChainFile = read_toml(path).map_err(|e| match is_experiment(path) {
-        true => bad(
-            "is an experiment file; `sigmap propagate` takes a chain file ([[transform]]s and \
-             a [point], docs/cli.md \"Chain file\")"
-                .into(),
-        ),
-        false => e,
+    let file: ChainFile = read_toml(path).map_err(|e| {
+        if is_experiment(path) {
+            bad(
+                "is an experiment file; `sigmap propagate` takes a chain file ([[transform]]s \
+                 and a [point], docs/cli.md \"Chain file\")"
+                    .into(),
+            )
+        } else {
+            e
+        }
     })?;
     if file.transforms.is_empty() {
         return Err(bad("the chain has no [[transform]]".into()));

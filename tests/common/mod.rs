@@ -157,6 +157,16 @@ pub fn run_into(
     sigmap(&run_args(file, out, extra))
 }
 
+/// `sigmap run experiments/quickstart.toml --out OUT -q EXTRA...`, checked.
+#[allow(dead_code)] // not every test file runs the quickstart
+pub fn run_quickstart(out: &std::path::Path, extra: &[&str]) {
+    ok(run_into(
+        std::path::Path::new("experiments/quickstart.toml"),
+        out,
+        extra,
+    ));
+}
+
 /// Asserts that `run` succeeded, showing its stderr if not.
 #[allow(dead_code)] // not every test file runs experiments
 pub fn ok(run: std::process::Output) {

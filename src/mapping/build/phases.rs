@@ -49,7 +49,7 @@ impl Phase {
 /// several threads, thread time: more than the wall time).
 #[derive(Debug, Default)]
 pub struct PhaseTimes {
-    nanos: [AtomicU64; 6],
+    nanos: [AtomicU64; Phase::ALL.len() + Phase::RAY_UPDATE.len()],
 }
 
 impl PhaseTimes {

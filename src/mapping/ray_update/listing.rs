@@ -103,20 +103,20 @@ impl CellSet {
 
     /// The blocks holding a free or an occupied cell, in box order.
     fn blocks(&self, occupied: &CellSet) -> Vec<Block> {
-        let words_per_row = self.row / 64;
+        let rows = Rows::of(self);
         let [_, ny, nz] = self.dims.map(|d| d / 8);
         let (free, taken) = (&self.bits, &occupied.bits);
         (0..ny * nz)
             .into_par_iter()
             .flat_map_iter(|yz| {
                 let (by, bz) = (yz % ny, yz / ny);
-                (0..words_per_row).flat_map(move |w| {
+                (0..rows.words).flat_map(move |w| {
                     // The union of the block-row's 64 rows in this word
                     // (the rows' padding past the box is never marked).
                     let mut any = 0u64;
                     for z in 0..8 {
                         for y in 0..8 {
-                            let word = self.row_index(by, bz, y, z) * words_per_row + w;
+                            let word = rows.row_index(by, bz, y, z) * rows.words + w;
                             any |= free[word].load(Relaxed) | taken[word].load(Relaxed);
                         }
                     }
@@ -130,12 +130,6 @@ impl CellSet {
                 })
             })
             .collect()
-    }
-
-    /// Row `y` of plane `z` of the block row `(by, bz)`, as a row of the box.
-    #[inline]
-    fn row_index(&self, by: usize, bz: usize, y: usize, z: usize) -> usize {
-        Rows::of(self).row_index(by, bz, y, z)
     }
 }
 
@@ -189,10 +183,7 @@ impl Rows {
 /// The cells set in a block's bytes.
 #[inline]
 fn ones(bytes: &[u8; 64]) -> usize {
-    bytes
-        .chunks_exact(8)
-        .map(|w| u64::from_ne_bytes(w.try_into().unwrap_or([0; 8])).count_ones() as usize)
-        .sum()
+    bytes.iter().map(|b| b.count_ones() as usize).sum()
 }
 
 /// The Morton code of the block `at` (in blocks from `min`, a multiple of 8
