@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{portable_quickstart, root, sigmap};
+use common::{portable_quickstart, refused, root, sigmap};
 use std::path::{Path, PathBuf};
 
 /// The quickstart experiment with absolute paths, one line replaced.
@@ -41,42 +41,35 @@ fn experiment_with(dir: &Path, name: &str, input: &str, file: &Path) -> PathBuf 
     experiment(dir, name, &shipped, file.to_str().unwrap())
 }
 
-/// Runs sigmap and checks: exit 2, one line on stderr naming `names` and
-/// saying `says`.
-fn refused(args: &[&str], names: &str, says: &str) {
-    let out = sigmap(args);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
-    assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
-    assert!(
-        stderr.contains(names) && stderr.contains(says),
-        "{args:?}: expected '{names}' and '{says}' in: {stderr}"
+/// `sigmap run PATH` refused: exit 2, one line naming the file and saying
+/// `says`.
+fn run_refused(d: &Path, path: &Path, says: &str) {
+    let out = d.join("out");
+    refused(
+        &[
+            "run",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        path.file_name().unwrap().to_str().unwrap(),
+        says,
     );
 }
 
+/// Rasters, ranges and sigma-point sets no map could be built from.
 #[test]
-fn absurd_sizes_are_refused_before_any_work() {
+fn absurd_rasters_ranges_and_sigma_sets_are_refused_before_any_work() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let run = |path: &Path, says: &str| {
-        let out = d.join("out");
-        refused(
-            &[
-                "run",
-                path.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-            ],
-            path.file_name().unwrap().to_str().unwrap(),
-            says,
-        );
-    };
     let step = "horizontal_step_deg = 0.5";
-    run(
+    run_refused(
+        d,
         &experiment(d, "tiny_step", step, "horizontal_step_deg = 1e-300"),
         "beams per viewpoint",
     );
-    run(
+    run_refused(
+        d,
         &experiment(d, "small_step", step, "horizontal_step_deg = 1e-9"),
         "beams per viewpoint",
     );
@@ -89,7 +82,7 @@ fn absurd_sizes_are_refused_before_any_work() {
         &d.join("fine_sampled.toml"),
         &[("seed = 1", "seed = 1\ninterpolate_beams = true")],
     );
-    run(&sampled, "interpolate_beams: 810081 beams per viewpoint");
+    run_refused(d, &sampled, "interpolate_beams: 810081 beams per viewpoint");
     let out = d.join("fine.bt");
     refused(
         &[
@@ -106,7 +99,7 @@ fn absurd_sizes_are_refused_before_any_work() {
     // A range the uncertainty-aware maps cannot clear: refused by `run` and
     // by `map` before the simulation (it used to build for ever).
     let far = experiment(d, "far", "max_range = 2.0", "max_range = 1e300");
-    run(&far, "max_range = 1e300 m");
+    run_refused(d, &far, "max_range = 1e300 m");
     let rays_only = experiment(
         d,
         "rays_only",
@@ -126,10 +119,10 @@ fn absurd_sizes_are_refused_before_any_work() {
         ),
     ] {
         let table = format!("[unscented]\n{table}\n\n[robot]");
-        run(&experiment(d, "sigma_set", "[robot]", &table), says);
+        run_refused(d, &experiment(d, "sigma_set", "[robot]", &table), says);
     }
     let near = experiment(d, "near", "min_range = 0.1", "min_range = 3.0");
-    run(&near, "max_range = 2 must exceed min_range = 3");
+    run_refused(d, &near, "max_range = 2 must exceed min_range = 3");
     let far_rays = edited(
         &rays_only,
         &d.join("far_rays.toml"),
@@ -150,12 +143,20 @@ fn absurd_sizes_are_refused_before_any_work() {
         refused(&args, path.file_name().unwrap().to_str().unwrap(), says);
     };
     map(&far_rays, "0.5", "at resolution 0.5 m");
+}
+
+/// Lists too long or repeated, a TOML file too large to parse, sweeps and
+/// profiles with values out of range.
+#[test]
+fn oversized_and_repeated_lists_are_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
     let mut many = std::fs::read_to_string(experiment(d, "many", "seed = 1", "seed = 1")).unwrap();
     for _ in 0..10_001 {
         many.push_str("\n[[viewpoint]]\njoints = [0.0, -1.2, 1.6, -1.97, -1.5708, 0.0]\n");
     }
     std::fs::write(d.join("many.toml"), many).unwrap();
-    run(&d.join("many.toml"), "viewpoints");
+    run_refused(d, &d.join("many.toml"), "viewpoints");
     // A million viewpoints (58 MB of TOML) under a 1 GB address-space
     // limit: refused on its size before it is parsed (parsing it took the
     // allocator down).
@@ -181,11 +182,13 @@ fn absurd_sizes_are_refused_before_any_work() {
         stderr.contains("huge.toml") && stderr.contains("a TOML input holds at most 4 MB"),
         "{stderr}"
     );
-    run(
+    run_refused(
+        d,
         &experiment(d, "dup_seeds", "seeds = [1, 2, 3]", "seeds = [1, 2, 1]"),
         "lists 1 more than once",
     );
-    run(
+    run_refused(
+        d,
         &experiment(
             d,
             "dup_methods",
@@ -198,12 +201,12 @@ fn absurd_sizes_are_refused_before_any_work() {
     let mut text = std::fs::read_to_string(&sweep).unwrap();
     text.push_str("\n[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [2, 2.0]\n");
     std::fs::write(&sweep, text).unwrap();
-    run(&sweep, "lists the value 2 more than once");
+    run_refused(d, &sweep, "lists the value 2 more than once");
     let sweep = experiment(d, "bad_reference", "seed = 1", "seed = 1");
     let mut text = std::fs::read_to_string(&sweep).unwrap();
     text.push_str("\n[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [0, 2]\nreference = 1\n");
     std::fs::write(&sweep, text).unwrap();
-    run(&sweep, "reference = 1 is not one of its values (0, 2)");
+    run_refused(d, &sweep, "reference = 1 is not one of its values (0, 2)");
     let huge = experiment(d, "huge_scale", "seed = 1", "seed = 1");
     let mut text = std::fs::read_to_string(&huge).unwrap();
     text.push_str("\n[[sweep]]\nfield = \"pose_error_scale\"\nvalues = [1e200]\n");
@@ -232,8 +235,15 @@ fn absurd_sizes_are_refused_before_any_work() {
         "p.toml",
         "sigma0 = 1e300 must be between 0 and 1",
     );
-    // A workspace the octree cannot hold.
+}
+
+/// Workspaces whose truth, or whose observable mask, no map could hold.
+#[test]
+fn workspaces_too_large_to_score_are_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
     let bunny = root().join("scenes/meshes/bunny.obj");
+    // A workspace the octree cannot hold.
     let huge_ws = ("max = [0.4, 0.4, 0.36]", "max = [1e6, 0.4, 0.36]");
     let scene = tabletop(&d.join("scene.toml"), bunny.to_str().unwrap(), &[huge_ws]);
     let e = experiment_with(d, "huge_ws", "scenes/tabletop.toml", &scene);
@@ -293,8 +303,15 @@ fn absurd_sizes_are_refused_before_any_work() {
         "far.toml",
         "the observable mask sigmap scores over takes at most 5e8",
     );
-    // A workspace of more than 2^31 cells (60 m x 60 m x 3 m at 1 cm) is
-    // run: its truth is computed where the beams reach, not over all of it.
+}
+
+/// A workspace of more than 2^31 cells is not refused.
+#[test]
+fn a_workspace_of_more_than_2_31_cells_is_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bunny = root().join("scenes/meshes/bunny.obj");
+    // 60 m x 60 m x 3 m at 1 cm: its truth is computed where the beams reach, not over all of it.
     let hall = (
         "min = [-0.4, -0.4, -0.04]\nmax = [0.4, 0.4, 0.36]",
         "min = [-30.0, -30.0, -0.04]\nmax = [30.0, 30.0, 3.0]",
@@ -321,7 +338,13 @@ fn absurd_sizes_are_refused_before_any_work() {
         .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
         .collect();
     assert!(observable.iter().all(|&n| n > 50_000), "{runs}");
-    // Flags.
+}
+
+/// Flags with values no run could use.
+#[test]
+fn absurd_flags_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
     let q = "experiments/quickstart.toml";
     refused(
         &[
@@ -390,299 +413,5 @@ fn bad_files_are_named_in_one_line() {
         &["run", e.to_str().unwrap()],
         "nolimit.urdf",
         "shoulder_pan_joint",
-    );
-}
-
-#[test]
-fn regress_refuses_what_it_cannot_compare() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let baseline = root().join("results/baselines/quickstart.csv");
-    let b = baseline.to_str().unwrap();
-    let text = std::fs::read_to_string(&baseline).unwrap();
-    let header = text.lines().next().unwrap();
-    let write = |name: &str, body: &str| {
-        let p = d.join(name);
-        std::fs::write(&p, body).unwrap();
-        p.to_str().unwrap().to_string()
-    };
-    let empty = write("empty.csv", "");
-    let header_only = write("header.csv", &format!("{header}\n"));
-    let nan: String = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            if i == 0 {
-                format!("{l}\n")
-            } else {
-                let mut f: Vec<&str> = l.split(',').collect();
-                f[4] = "NaN";
-                format!("{}\n", f.join(","))
-            }
-        })
-        .collect();
-    let nan = write("nan.csv", &nan);
-    let second = text.lines().nth(1).unwrap();
-    let dup = write("dup.csv", &format!("{text}{second}\n"));
-    for (path, says) in [
-        (empty.as_str(), "holds no rows"),
-        (header_only.as_str(), "holds no rows"),
-        (nan.as_str(), "no finite metric"),
-        (dup.as_str(), "twice"),
-        (d.to_str().unwrap(), "is not a file"),
-    ] {
-        refused(&["regress", b, "--baseline", path], path, says);
-    }
-    refused(
-        &["regress", b, "--baseline", b, "--tolerance", "nope=0.1"],
-        "nope",
-        "no metric",
-    );
-    // The baseline against itself passes.
-    assert!(sigmap(&["regress", b, "--baseline", b]).status.success());
-}
-
-#[test]
-fn export_refuses_a_cell_the_experiment_does_not_have() {
-    refused(
-        &["export", "experiments/quickstart.toml", "--cell", "3"],
-        "--cell: sweep cell 3",
-        "1 sweep cells",
-    );
-}
-
-#[test]
-fn score_never_rewrites_a_csv_sigmap_did_not_write() {
-    let dir = tempfile::tempdir().unwrap();
-    let map = dir.path().join("m.ot");
-    let (m, csv) = (map.to_str().unwrap(), dir.path().join("mine.csv"));
-    let out = sigmap(&[
-        "map",
-        "experiments/quickstart.toml",
-        "--method",
-        "ray_update",
-        "-q",
-        "--out",
-        m,
-    ]);
-    assert!(out.status.success());
-    let score = [
-        "score",
-        m,
-        "experiments/quickstart.toml",
-        "-q",
-        "--csv",
-        csv.to_str().unwrap(),
-    ];
-    assert!(sigmap(&score).status.success());
-    // Someone adds a column of their own: every runs.csv column is still
-    // there, but rewriting the file would drop theirs.
-    let theirs: String = std::fs::read_to_string(&csv)
-        .unwrap()
-        .lines()
-        .enumerate()
-        .map(|(i, l)| format!("{l},{}\n", if i == 0 { "note" } else { "keep me" }))
-        .collect();
-    std::fs::write(&csv, &theirs).unwrap();
-    refused(&score, "mine.csv", "header is not the runs.csv columns");
-    assert_eq!(std::fs::read_to_string(&csv).unwrap(), theirs);
-}
-
-#[test]
-fn map_scans_refuses_bad_graphs_and_profiles() {
-    use sigmap::geometry::{Isometry3, Point3, Vector3};
-    use sigmap::mapping::scan_graph::{to_scan_graph, ScanNode};
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let node = ScanNode {
-        id: 0,
-        map_from_sensor: Isometry3::new(Vector3::new(0.0, 0.0, 1.0), Vector3::new(3.1, 0.0, 0.0)),
-        points: (0..50)
-            .map(|i| Point3::new(0.01 * i as f64, 0.0, 0.8))
-            .collect(),
-    };
-    let good = to_scan_graph(&[node]);
-    let write = |name: &str, bytes: &[u8]| {
-        let path = d.join(name);
-        std::fs::write(&path, bytes).unwrap();
-        path.to_str().unwrap().to_owned()
-    };
-    let profile = root()
-        .join("experiments/profiles/collaborative_poses.toml")
-        .display()
-        .to_string();
-    let out = d.join("map.bt");
-    let out = out.to_str().unwrap();
-    let map = |graph: &str, profile: &str| -> Vec<String> {
-        [
-            "map",
-            "--scans",
-            graph,
-            "--profile",
-            profile,
-            "--out",
-            out,
-            "-q",
-        ]
-        .map(String::from)
-        .to_vec()
-    };
-    let refused_map = |graph: &str, profile: &str, names: &str, says: &str| {
-        let args = map(graph, profile);
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        refused(&args, names, says);
-        assert!(!Path::new(out).exists(), "no map written");
-    };
-    let truncated = write("truncated.graph", &good[..good.len() - 10]);
-    refused_map(&truncated, &profile, "truncated.graph", "truncated");
-    let mut counts = good.clone();
-    counts[4..8].copy_from_slice(&1_000_000u32.to_le_bytes());
-    let counts = write("counts.graph", &counts);
-    refused_map(&counts, &profile, "counts.graph", "claims 1000000 points");
-    // The pose translation's x: after n, count, 50 points and the i32 tag.
-    let mut nan = good.clone();
-    let at = 4 + 4 + 50 * 28 + 4;
-    nan[at..at + 8].copy_from_slice(&f64::NAN.to_le_bytes());
-    let nan = write("nan.graph", &nan);
-    refused_map(&nan, &profile, "nan.graph", "NaN");
-    let missing = d.join("missing.graph").display().to_string();
-    refused_map(&missing, &profile, "missing.graph", "cannot read");
-    // The collaborative profile gives the arm error per joint.
-    let good = write("good.graph", &good);
-    let joints = root()
-        .join("experiments/profiles/collaborative.toml")
-        .display()
-        .to_string();
-    refused_map(&good, &joints, "collaborative.toml", "joint_sigma");
-    refused(
-        &["map", "--scans", &good, "--profile", &profile, "-q"],
-        "--out",
-        "--scans needs --out",
-    );
-    refused(
-        &[
-            "map",
-            "--scans",
-            &good,
-            "--profile",
-            &profile,
-            "--out",
-            out,
-            "--angular-step",
-            "0",
-        ],
-        "--angular-step",
-        "between 0 and 10 degrees",
-    );
-    refused(
-        &[
-            "map",
-            "experiments/quickstart.toml",
-            "--profile",
-            &profile,
-            "--out",
-            out,
-        ],
-        "--profile",
-        "are for --scans",
-    );
-    // Missing --profile is clap's: exit 2 with its usage text.
-    let args = ["map", "--scans", good.as_str(), "--out", out];
-    assert_eq!(sigmap(&args).status.code(), Some(2), "{args:?}");
-    // And the good graph maps.
-    let args = map(&good, &profile);
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let ok = sigmap(&args);
-    assert!(
-        ok.status.success(),
-        "{}",
-        String::from_utf8_lossy(&ok.stderr)
-    );
-    assert!(Path::new(out).is_file());
-}
-
-/// The command line of a careful tool: the help lists the values a flag
-/// takes, `run` offers no flag it would refuse, a bad value gets one line
-/// with the possible values, and a negative number reaches the range check.
-#[test]
-fn the_command_line_lists_values_and_checks_negative_numbers() {
-    let help = String::from_utf8_lossy(&sigmap(&["map", "--help"]).stdout).into_owned();
-    assert!(
-        help.contains("[possible values: blind, jacobian, unscented, correlated, ray_update, ray_update_discrete, registered_truth]")
-            && help.contains("[possible values: off, faces, windows]"),
-        "{help}"
-    );
-    let run_help = String::from_utf8_lossy(&sigmap(&["run", "--help"]).stdout).into_owned();
-    assert!(!run_help.contains("--seed"), "{run_help}");
-    let q = "experiments/quickstart.toml";
-    refused(
-        &["map", q, "--method", "bogus"],
-        "--method",
-        "[possible values: blind,",
-    );
-    refused(
-        &["map", q, "--resolution", "-0.01"],
-        "--resolution",
-        "resolution = -0.01 must be between 0.001 and 1 m",
-    );
-}
-
-/// Inputs in the wrong place or missing say what they are: `score`'s
-/// arguments swapped, `status` on a results folder that is no submission, a
-/// scene file named relative to the experiment that is not there; a `.bt`
-/// scored says why its scores differ from the `.ot`'s, and `export` points
-/// to the `.ot` graph2tree writes.
-#[test]
-fn misplaced_and_missing_inputs_say_what_they_are() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let q = "experiments/quickstart.toml";
-    let out = d.join("q");
-    let out_s = out.to_str().unwrap();
-    let run = sigmap(&["run", q, "--out", out_s, "-q"]);
-    assert!(run.status.success());
-    let map = out.join("map_blind.bt");
-    refused(
-        &["score", q, map.to_str().unwrap()],
-        "quickstart.toml",
-        "the map (.bt or .ot) comes first",
-    );
-    refused(
-        &["status", out_s],
-        "results of `sigmap run`",
-        "no submit.toml",
-    );
-    let missing = experiment(d, "missing_scene", "tabletop.toml", "no_such_scene.toml");
-    refused(
-        &["run", missing.to_str().unwrap(), "-q"],
-        "missing_scene.toml",
-        "no_such_scene.toml\": no such file (looked for",
-    );
-    let scored = sigmap(&["score", map.to_str().unwrap(), q]);
-    assert!(scored.status.success());
-    let note = String::from_utf8_lossy(&scored.stderr);
-    assert!(
-        note.contains("a .bt holds only occupied and free"),
-        "{note}"
-    );
-    let exported = sigmap(&["export", q, "--out", d.join("e").to_str().unwrap()]);
-    let says = String::from_utf8_lossy(&exported.stderr);
-    assert!(says.contains("score map.bt.ot"), "{says}");
-}
-
-/// A map that is not an octree is named as the map argument.
-#[test]
-fn a_map_that_is_no_octree_is_named_as_the_map() {
-    let dir = tempfile::tempdir().unwrap();
-    let bad = dir.path().join("garbage.bt");
-    std::fs::write(&bad, "not an octree\n").unwrap();
-    refused(
-        &[
-            "score",
-            bad.to_str().unwrap(),
-            "experiments/quickstart.toml",
-        ],
-        "garbage.bt: the map (first argument)",
-        "not an OctoMap file",
     );
 }

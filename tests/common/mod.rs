@@ -176,3 +176,17 @@ pub fn ok(run: std::process::Output) {
         String::from_utf8_lossy(&run.stderr)
     );
 }
+
+/// Runs sigmap and checks: exit 2, one line on stderr naming `names` and
+/// saying `says`.
+#[allow(dead_code)] // only the tests of bad input
+pub fn refused(args: &[&str], names: &str, says: &str) {
+    let out = sigmap(args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
+    assert!(
+        stderr.contains(names) && stderr.contains(says),
+        "{args:?}: expected '{names}' and '{says}' in: {stderr}"
+    );
+}
