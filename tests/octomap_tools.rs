@@ -104,6 +104,83 @@ fn octomap_reads_what_sigmap_writes() {
     );
 }
 
+/// OctoMap's leaves of a typed tree as `tests/octomap/typed_trees.cpp` lists
+/// them (`x y z depth bits`, the key of a coarse leaf its centre's), as
+/// sigmap's [`Leaf`](sigmap::mapping::Leaf)s: each key the leaf's smallest.
+fn octomap_leaves(path: &Path) -> Vec<(Key, u8, u32)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut leaves: Vec<(Key, u8, u32)> = text
+        .lines()
+        .map(|line| {
+            let f: Vec<u32> = line.split(' ').map(|w| w.parse().unwrap()).collect();
+            let depth = f[3] as u8;
+            let half = if depth < 16 { 1u32 << (15 - depth) } else { 0 };
+            let key = Key(std::array::from_fn(|a| (f[a] - half) as u16));
+            (key, depth, f[4])
+        })
+        .collect();
+    leaves.sort_by_key(|&(key, depth, _)| (key.0, depth));
+    leaves
+}
+
+/// Checks two leaf lists are equal; else names the first difference.
+fn same_leaves(ours: &[(Key, u8, u32)], theirs: &[(Key, u8, u32)], what: &str) {
+    let first = ours.iter().zip(theirs).position(|(a, b)| a != b);
+    assert!(
+        ours.len() == theirs.len() && first.is_none(),
+        "{what}: {} leaves read, OctoMap holds {}; first difference at {first:?}: {:?} against {:?}",
+        ours.len(),
+        theirs.len(),
+        first.map(|i| ours[i]),
+        first.map(|i| theirs[i]),
+    );
+}
+
+/// An `OcTreeStamped` and a `ColorOcTree` that OctoMap built and wrote (a
+/// scan of a bumpy wall, every leaf of the colour tree coloured) are read as
+/// OctoMap holds them: every leaf, depth and log-odds of the `.ot`, and from
+/// the `.bt` every leaf at the clamp bound of its class.
+#[test]
+#[ignore = "needs OctoMap's library (apt-get install liboctomap-dev) and g++; .ci/run runs it"]
+fn octomaps_stamped_and_colour_trees_are_read_leaf_for_leaf() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = dir.path().join("typed_trees");
+    let source = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/octomap/typed_trees.cpp");
+    run(Command::new("g++")
+        .args(["-O2", "-std=c++17", source, "-o"])
+        .arg(&exe)
+        .args(["-loctomap", "-loctomath"]));
+    run(Command::new(&exe).arg("0.02").arg(dir.path()));
+    for stem in ["stamped", "colour"] {
+        let theirs = octomap_leaves(&dir.path().join(format!("{stem}.leaves")));
+        assert!(theirs.len() > 1000, "{stem}: {} leaves", theirs.len());
+        let as_listed = |tree: Octree| -> Vec<(Key, u8, u32)> {
+            let mut leaves: Vec<_> = tree
+                .leaves()
+                .into_iter()
+                .map(|l| (l.key, l.depth, l.value.to_bits()))
+                .collect();
+            leaves.sort_by_key(|&(key, depth, _)| (key.0, depth));
+            leaves
+        };
+        let ot = read_octree(&dir.path().join(format!("{stem}.ot")), Clamp::OCTOMAP).unwrap();
+        same_leaves(&as_listed(ot), &theirs, &format!("{stem}.ot"));
+        let bt = read_octree(&dir.path().join(format!("{stem}.bt")), Clamp::OCTOMAP).unwrap();
+        let classes: Vec<_> = theirs
+            .iter()
+            .map(|&(key, depth, bits)| {
+                let bound = if is_occupied(f32::from_bits(bits)) {
+                    Clamp::OCTOMAP.max
+                } else {
+                    Clamp::OCTOMAP.min
+                };
+                (key, depth, bound.to_bits())
+            })
+            .collect();
+        same_leaves(&as_listed(bt), &classes, &format!("{stem}.bt"));
+    }
+}
+
 /// `sigmap map` of the quickstart's first run with the ray update at
 /// `resolution`, written to `out`, with `extra` arguments.
 fn ray_update_map(resolution: &str, out: &std::path::Path, extra: &[&str]) {

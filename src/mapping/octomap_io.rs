@@ -1,5 +1,7 @@
 //! OctoMap's file formats (docs/octomap.md): `.ot` (full log-odds)
-//! and `.bt` (maximum likelihood, 2 bits per child), written and read.
+//! and `.bt` (maximum likelihood, 2 bits per child), written and read. An
+//! `OcTreeStamped` or `ColorOcTree` file is read as its occupancy (its
+//! colours are passed over); files are written as `OcTree`.
 
 use super::octree::{Clamp, NodeId, Octree, DEPTH};
 use crate::error::{Error, Result};
@@ -166,9 +168,10 @@ pub fn parse(bytes: &[u8], clamp: Clamp) -> std::result::Result<Octree, String> 
             _ => return Err(format!("unexpected header line '{line}'")),
         }
     }
-    if id.as_deref() != Some("OcTree") {
-        return Err(format!("tree type {id:?} is not OcTree"));
-    }
+    let extra = match id.as_deref() {
+        Some(id) => node_extra_bytes(id)?,
+        None => return Err("no `id` line (the tree type, e.g. `id OcTree`)".into()),
+    };
     let resolution = resolution
         .filter(|r| r.is_finite() && *r > 0.0)
         .ok_or("missing or bad `res` (a positive, finite cell size in metres)")?;
@@ -183,7 +186,7 @@ pub fn parse(bytes: &[u8], clamp: Clamp) -> std::result::Result<Octree, String> 
             tree.set_raw_value(root, 0.0);
             read_bt_node(&mut tree, root, &body, &mut cursor, clamp)?;
         } else {
-            read_ot_node(&mut tree, root, &body, &mut cursor)?;
+            read_ot_node(&mut tree, root, (&body, &mut cursor), extra)?;
         }
     }
     if cursor != body.len() {
@@ -217,11 +220,27 @@ fn take<'a>(body: &'a [u8], cursor: &mut usize, n: usize) -> std::result::Result
     Ok(slice)
 }
 
+/// The bytes a `.ot` node of tree type `id` holds after its log-odds: none
+/// for `OcTree` and `OcTreeStamped` (OctoMap writes no time stamp), a colour
+/// (r, g, b) for `ColorOcTree`. Their `.bt` bodies are all alike. Other
+/// types are refused by name.
+fn node_extra_bytes(id: &str) -> std::result::Result<usize, String> {
+    match id {
+        "OcTree" | "OcTreeStamped" => Ok(0),
+        "ColorOcTree" => Ok(3),
+        other => Err(format!(
+            "tree type `{other}` is not an occupancy tree sigmap reads (OcTree, OcTreeStamped, ColorOcTree)"
+        )),
+    }
+}
+
+/// A `.ot` node (its log-odds, then `extra` bytes sigmap does not keep, then
+/// its child mask) and what lies below it.
 fn read_ot_node(
     tree: &mut Octree,
     node: NodeId,
-    body: &[u8],
-    cursor: &mut usize,
+    (body, cursor): (&[u8], &mut usize),
+    extra: usize,
 ) -> std::result::Result<(), String> {
     let value = f32::from_le_bytes(
         take(body, cursor, 4)?
@@ -229,6 +248,7 @@ fn read_ot_node(
             .map_err(|_| "short value")?,
     );
     tree.set_raw_value(node, value);
+    take(body, cursor, extra)?;
     let mask = take(body, cursor, 1)?[0];
     if mask != 0 {
         if node.depth() == DEPTH {
@@ -237,7 +257,7 @@ fn read_ot_node(
         let block = tree.raw_expand(node);
         for i in 0..8 {
             if mask & (1 << i) != 0 {
-                read_ot_node(tree, block.offset(i), body, cursor)?;
+                read_ot_node(tree, block.offset(i), (body, &mut *cursor), extra)?;
             }
         }
     }

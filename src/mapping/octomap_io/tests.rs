@@ -157,3 +157,75 @@ fn a_depth_15_inner_node_reads_as_the_maximum_of_its_cells() {
     assert_eq!(back, tree);
     assert_eq!(to_ot(&back), bytes);
 }
+
+/// A file's header (through its `data` line) and its body.
+fn split_header(bytes: &[u8]) -> (String, &[u8]) {
+    let data = bytes.windows(5).position(|w| w == b"data\n").unwrap() + 5;
+    let (head, body) = bytes.split_at(data);
+    (String::from_utf8(head.to_vec()).unwrap(), body)
+}
+
+/// `.ot` body bytes with `extra` bytes (0x7f, 0x80, 0x81, …) after each
+/// node's log-odds, as a tree whose nodes carry more than a value writes them.
+fn with_node_extras(body: &[u8], extra: usize) -> Vec<u8> {
+    fn node(body: &[u8], at: &mut usize, extra: usize, out: &mut Vec<u8>) {
+        out.extend_from_slice(&body[*at..*at + 4]);
+        out.extend((0..extra).map(|k| 0x7f + k as u8));
+        let mask = body[*at + 4];
+        out.push(mask);
+        *at += 5;
+        for _ in 0..mask.count_ones() {
+            node(body, at, extra, out);
+        }
+    }
+    let mut out = Vec::new();
+    let mut at = 0;
+    node(body, &mut at, extra, &mut out);
+    assert_eq!(at, body.len(), "one tree");
+    out
+}
+
+/// The `.ot` and `.bt` files of OctoMap's other occupancy trees give the
+/// same occupancy: `OcTreeStamped` (no time stamp is written) and
+/// `ColorOcTree` (three colour bytes after each node's log-odds). Other
+/// tree types are refused by name.
+#[test]
+fn stamped_and_colour_trees_are_read_as_their_occupancy() {
+    let tree = sample_tree();
+    let ot = to_ot(&tree);
+    let (head, body) = split_header(&ot);
+    for (id, extra) in [("OcTreeStamped", 0), ("ColorOcTree", 3)] {
+        let mut typed = head
+            .replace("id OcTree\n", &format!("id {id}\n"))
+            .into_bytes();
+        typed.extend(with_node_extras(body, extra));
+        let back = parse(&typed, Clamp::OCTOMAP).unwrap_or_else(|e| panic!("{id}: {e}"));
+        assert_eq!(back, tree, "{id}");
+        assert_eq!(to_ot(&back), ot, "{id}");
+        let bt = to_bt(&tree, Clamp::OCTOMAP);
+        let (bt_head, bt_body) = split_header(&bt);
+        let mut typed_bt = bt_head
+            .replace("id OcTree\n", &format!("id {id}\n"))
+            .into_bytes();
+        typed_bt.extend_from_slice(bt_body);
+        let back = parse(&typed_bt, Clamp::OCTOMAP).unwrap();
+        assert_eq!(to_bt(&back, Clamp::OCTOMAP), bt, "{id} .bt");
+    }
+    // A colour tree's extra bytes read as a plain tree's are refused.
+    let mut wrong = head.clone().into_bytes();
+    wrong.extend(with_node_extras(body, 3));
+    assert!(parse(&wrong, Clamp::OCTOMAP).is_err());
+    let mut counting = head
+        .replace("id OcTree\n", "id CountingOcTree\n")
+        .into_bytes();
+    counting.extend_from_slice(body);
+    let error = parse(&counting, Clamp::OCTOMAP).unwrap_err();
+    assert!(
+        error.contains("`CountingOcTree`") && error.contains("OcTree, OcTreeStamped, ColorOcTree"),
+        "{error}"
+    );
+    let mut no_id = head.replace("id OcTree\n", "").into_bytes();
+    no_id.extend_from_slice(body);
+    let error = parse(&no_id, Clamp::OCTOMAP).unwrap_err();
+    assert!(error.contains("no `id` line"), "{error}");
+}
