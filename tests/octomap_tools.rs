@@ -19,6 +19,17 @@ fn run(command: &mut Command) -> String {
     text
 }
 
+/// Builds the C++ program `source` (a repository path) into `exe` with g++
+/// against Debian's liboctomap-dev.
+fn build_against_liboctomap(source: &str, exe: &Path) {
+    run(Command::new("g++")
+        .args(["-O2", "-std=c++17"])
+        .arg(common::root().join(source))
+        .arg("-o")
+        .arg(exe)
+        .args(["-loctomap", "-loctomath"]));
+}
+
 fn require_tools() {
     assert!(
         Command::new("convert_octree").output().is_ok(),
@@ -145,11 +156,7 @@ fn same_leaves(ours: &[(Key, u8, u32)], theirs: &[(Key, u8, u32)], what: &str) {
 fn octomaps_stamped_and_colour_trees_are_read_leaf_for_leaf() {
     let dir = tempfile::tempdir().unwrap();
     let exe = dir.path().join("typed_trees");
-    let source = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/octomap/typed_trees.cpp");
-    run(Command::new("g++")
-        .args(["-O2", "-std=c++17", source, "-o"])
-        .arg(&exe)
-        .args(["-loctomap", "-loctomath"]));
+    build_against_liboctomap("tests/octomap/typed_trees.cpp", &exe);
     run(Command::new(&exe).arg("0.02").arg(dir.path()));
     for stem in ["stamped", "colour"] {
         let theirs = octomap_leaves(&dir.path().join(format!("{stem}.leaves")));
@@ -221,11 +228,7 @@ fn ray_update_builds_the_same_tree_as_octomap() {
     require_tools();
     let dir = tempfile::tempdir().unwrap();
     let exe = dir.path().join("insert");
-    let source = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/octomap/insert.cpp");
-    run(Command::new("g++")
-        .args(["-O2", "-std=c++17", source, "-o"])
-        .arg(&exe)
-        .args(["-loctomap", "-loctomath"]));
+    build_against_liboctomap("benches/octomap/insert.cpp", &exe);
     // The quickstart as shipped, with pooling off and on, and with a grid
     // offset drawn for its seed: the rays are exported in the map frame the
     // map is built in.
