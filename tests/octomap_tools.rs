@@ -188,6 +188,80 @@ fn octomaps_stamped_and_colour_trees_are_read_leaf_for_leaf() {
     }
 }
 
+/// `sigmap score --errors FILE.ot` writes a `ColorOcTree` that OctoMap's
+/// reader opens (`typed_trees list`): one finest occupied leaf per cell of
+/// the `.csv` list, red where it is false-free and orange where it is
+/// false-occupied.
+#[test]
+#[ignore = "needs OctoMap's library (apt-get install liboctomap-dev) and g++; .ci/run runs it"]
+fn the_errors_colour_tree_opens_in_octomaps_reader() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = dir.path().join("typed_trees");
+    build_against_liboctomap("tests/octomap/typed_trees.cpp", &exe);
+    let map = dir.path().join("map.ot");
+    ray_update_map("0.01", &map, &[]);
+    let (ot, csv) = (dir.path().join("wrong.ot"), dir.path().join("wrong.csv"));
+    for errors in [&ot, &csv] {
+        run(Command::new(env!("CARGO_BIN_EXE_sigmap"))
+            .args([
+                "score",
+                map.to_str().unwrap(),
+                "experiments/quickstart.toml",
+                "-q",
+            ])
+            .arg("--errors")
+            .arg(errors)
+            .current_dir(common::root()));
+    }
+    let listed = run(Command::new(&exe).arg("list").arg(&ot));
+    let mut theirs: Vec<Vec<u32>> = listed
+        .lines()
+        .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
+        .map(|l| l.split(' ').map(|w| w.parse().unwrap()).collect())
+        .collect();
+    theirs.sort_unstable();
+    let geometry = Octree::new(0.01);
+    let mut ours: Vec<Vec<u32>> = std::fs::read_to_string(&csv)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|line| {
+            let f: Vec<&str> = line.split(',').collect();
+            let centre = std::array::from_fn(|a| f[a].parse::<f64>().unwrap());
+            let key = geometry.key(&centre.into()).unwrap();
+            let colour = if f[3] == "false_free" {
+                [220, 30, 30]
+            } else {
+                [245, 150, 20]
+            };
+            let [x, y, z] = key.0.map(u32::from);
+            vec![
+                x,
+                y,
+                z,
+                16,
+                Clamp::OCTOMAP.max.to_bits(),
+                colour[0],
+                colour[1],
+                colour[2],
+            ]
+        })
+        .collect();
+    ours.sort_unstable();
+    assert!(ours.len() > 100, "{} wrong cells", ours.len());
+    assert_eq!(
+        theirs.len(),
+        ours.len(),
+        "leaves OctoMap reads, cells listed"
+    );
+    let first = theirs.iter().zip(&ours).position(|(a, b)| a != b);
+    assert!(
+        first.is_none(),
+        "first difference: {:?}",
+        first.map(|i| (&theirs[i], &ours[i]))
+    );
+}
+
 /// `sigmap map` of the quickstart's first run with the ray update at
 /// `resolution`, written to `out`, with `extra` arguments.
 fn ray_update_map(resolution: &str, out: &std::path::Path, extra: &[&str]) {

@@ -1,9 +1,12 @@
-//! `sigmap score --errors`: the cells a map calls wrongly, as CSV and PLY,
-//! against the rates that count them.
+//! `sigmap score --errors`: the cells a map calls wrongly, as CSV, PLY and
+//! OctoMap colour tree, against the rates that count them.
 
 mod common;
 
 use common::{sigmap, sigmap_ok};
+use sigmap::geometry::Point3;
+use sigmap::mapping::octomap_io::read_octree;
+use sigmap::mapping::Clamp;
 use std::path::Path;
 
 /// A runs.csv row: (column, value) in file order.
@@ -14,7 +17,7 @@ fn path(p: &Path) -> String {
 }
 
 /// The quickstart's ray-update map scored with `--errors` into `dir` as
-/// `errors.csv` and `errors.ply`, and its row in `row.csv`.
+/// `errors.csv`, `errors.ply` and `errors.ot`, and its row in `row.csv`.
 fn score_with_errors(dir: &Path) -> (String, Vec<u8>, Row) {
     let map = dir.join("map.ot");
     sigmap_ok(&[
@@ -31,7 +34,12 @@ fn score_with_errors(dir: &Path) -> (String, Vec<u8>, Row) {
         dir.join("errors.ply"),
         dir.join("row.csv"),
     );
-    for (errors, extra) in [(&csv, vec!["--csv", row.to_str().unwrap()]), (&ply, vec![])] {
+    let ot = dir.join("errors.ot");
+    for (errors, extra) in [
+        (&csv, vec!["--csv", row.to_str().unwrap()]),
+        (&ply, vec![]),
+        (&ot, vec![]),
+    ] {
         let args = ["score", &path(&map), "experiments/quickstart.toml", "-q"];
         sigmap_ok(&[&args[..], &["--errors", &path(errors)], &extra[..]].concat());
     }
@@ -52,8 +60,9 @@ fn score_with_errors(dir: &Path) -> (String, Vec<u8>, Row) {
 
 /// `score --errors` lists exactly the cells the false-free and
 /// false-occupied rates count, with the map's probability on the wrong side
-/// of ½; the PLY holds the same cells in the same order, coloured by error;
-/// another extension is refused before anything is scored.
+/// of ½; the PLY holds the same cells in the same order, coloured by error,
+/// and the `.ot` the same cells, each a finest occupied leaf; another
+/// extension is refused before anything is scored.
 #[test]
 fn score_lists_the_cells_its_rates_count() {
     let dir = tempfile::tempdir().unwrap();
@@ -111,6 +120,30 @@ fn score_lists_the_cells_its_rates_count() {
         [245, 150, 20]
     };
     assert_eq!(first[24..], red);
+    let tree = read_octree(&dir.path().join("errors.ot"), Clamp::OCTOMAP).unwrap();
+    let mut leaves: Vec<_> = tree
+        .leaves()
+        .into_iter()
+        .map(|l| (l.key.0, l.depth, l.value.to_bits()))
+        .collect();
+    leaves.sort_unstable();
+    let mut listed: Vec<_> = lines
+        .iter()
+        .map(|l| {
+            let centre = Point3::new(
+                l[0].parse().unwrap(),
+                l[1].parse().unwrap(),
+                l[2].parse().unwrap(),
+            );
+            (
+                tree.key(&centre).unwrap().0,
+                16,
+                Clamp::OCTOMAP.max.to_bits(),
+            )
+        })
+        .collect();
+    listed.sort_unstable();
+    assert_eq!(leaves, listed, "the .ot's leaves are the CSV's cells");
     let wrong = dir.path().join("errors.txt");
     let refused = sigmap(&[
         "score",
@@ -185,14 +218,23 @@ fn errors_never_replaces_a_file_it_did_not_write() {
         );
         assert_eq!(std::fs::read_to_string(&mine).unwrap(), "my own points\n");
     }
+    // The map itself named as the `.ot` list: an OctoMap file sigmap score
+    // did not write, left as it is.
+    let before = std::fs::read(&map).unwrap();
+    let refused = score(&["--errors", &map]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("not a list"), "{stderr}");
+    assert_eq!(std::fs::read(&map).unwrap(), before);
     let both = path(&d.join("both.csv"));
     let refused = score(&["--errors", &both, "--csv", &both]);
     assert_eq!(refused.status.code(), Some(2));
     assert!(!d.join("both.csv").exists());
     // The lists written before are replaced by the same lists.
-    let before = std::fs::read(d.join("errors.ply")).unwrap();
-    for list in ["errors.csv", "errors.ply"] {
+    let before = ["errors.ply", "errors.ot"].map(|list| std::fs::read(d.join(list)).unwrap());
+    for list in ["errors.csv", "errors.ply", "errors.ot"] {
         assert!(score(&["--errors", &path(&d.join(list))]).status.success());
     }
-    assert_eq!(std::fs::read(d.join("errors.ply")).unwrap(), before);
+    let after = ["errors.ply", "errors.ot"].map(|list| std::fs::read(d.join(list)).unwrap());
+    assert_eq!(after, before);
 }

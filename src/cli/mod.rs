@@ -351,8 +351,9 @@ pub(crate) struct ScoreArgs {
     csv: Option<PathBuf>,
     /// Write the scored cells the map calls wrongly (false-free and
     /// false-occupied), their centres in the map frame: FILE.csv (a table:
-    /// x,y,z,error,log_odds,probability) or FILE.ply (points coloured by
-    /// error, for CloudCompare or MeshLab).
+    /// x,y,z,error,log_odds,probability), FILE.ply (points coloured by
+    /// error, for CloudCompare or MeshLab) or FILE.ot (an OctoMap
+    /// ColorOcTree of the cells coloured by error, for octovis).
     #[arg(long, value_name = "FILE")]
     errors: Option<PathBuf>,
     #[command(flatten)]

@@ -18,10 +18,73 @@ pub fn is_occupied(log_odds: f32) -> bool {
 }
 
 fn header(first: &str, size: usize, resolution: f64) -> String {
+    typed_header(first, "", "OcTree", size, resolution)
+}
+
+/// A header for a tree of type `id`, with `comment` lines (each starting
+/// with `# `) after the first line.
+fn typed_header(first: &str, comment: &str, id: &str, size: usize, resolution: f64) -> String {
     format!(
-        "{first}\n# (feel free to add / change comments, but leave the first line as it is!)\n#\n\
-         id OcTree\nsize {size}\nres {resolution}\ndata\n"
+        "{first}\n{comment}# (feel free to add / change comments, but leave the first line as it is!)\n#\n\
+         id {id}\nsize {size}\nres {resolution}\ndata\n"
     )
+}
+
+/// OctoMap's colour of a node no one coloured (`ColorOcTreeNode::Color()`).
+const WHITE: [u8; 3] = [255, 255, 255];
+
+/// The `.ot` bytes of a `ColorOcTree` holding only `cells`: finest cells by
+/// Morton code ([`Key::morton`](super::Key::morton), sorted, each once), each
+/// at log-odds `value` in its own colour. No cell is pruned into its parent,
+/// so neighbours keep their colours; inner nodes hold `value` (the maximum
+/// of their children) and OctoMap's default colour. `comment` (lines that
+/// start with `# `) goes in the header.
+pub fn colour_cells_to_ot(
+    resolution: f64,
+    cells: &[(u64, [u8; 3])],
+    value: f32,
+    comment: &str,
+) -> Vec<u8> {
+    debug_assert!(
+        cells.windows(2).all(|w| w[0].0 < w[1].0),
+        "sorted, each once"
+    );
+    let mut body = Vec::new();
+    let nodes = if cells.is_empty() {
+        0
+    } else {
+        write_colour_node(cells, 0, value, &mut body)
+    };
+    let mut out = typed_header(OT_HEADER, comment, "ColorOcTree", nodes, resolution).into_bytes();
+    out.extend(body);
+    out
+}
+
+/// The node at `depth` holding `cells` (all of them below it) and its
+/// subtree, depth first; returns its node count.
+fn write_colour_node(cells: &[(u64, [u8; 3])], depth: u8, value: f32, out: &mut Vec<u8>) -> usize {
+    out.extend_from_slice(&value.to_le_bytes());
+    if depth == DEPTH {
+        out.extend_from_slice(&cells[0].1);
+        out.push(0);
+        return 1;
+    }
+    out.extend_from_slice(&WHITE);
+    // The child index at this depth: the code's next three bits from the top.
+    let shift = 3 * u32::from(DEPTH - depth - 1);
+    let child = |code: u64| (code >> shift & 7) as usize;
+    let mask = cells
+        .iter()
+        .fold(0u8, |mask, &(code, _)| mask | 1 << child(code));
+    out.push(mask);
+    let mut nodes = 1;
+    let mut rest = cells;
+    while let Some(&(first, _)) = rest.first() {
+        let run = rest.partition_point(|&(code, _)| child(code) == child(first));
+        nodes += write_colour_node(&rest[..run], depth + 1, value, out);
+        rest = &rest[run..];
+    }
+    nodes
 }
 
 /// Known nodes of the tree (OctoMap's `size()`).

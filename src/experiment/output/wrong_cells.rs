@@ -1,9 +1,11 @@
 //! `sigmap score --errors`: the scored cells a map calls wrongly, as a CSV
-//! table or a coloured point cloud (PLY) to look at beside the map.
+//! table, a coloured point cloud (PLY) to look at beside the map, or an
+//! OctoMap `ColorOcTree` (`.ot`) for octovis.
 
 use crate::error::{Error, Result};
 use crate::eval::scores::{CellError, WrongCell};
-use crate::mapping::octree::DEPTH;
+use crate::mapping::octomap_io::colour_cells_to_ot;
+use crate::mapping::octree::{Clamp, DEPTH};
 use crate::mapping::opdf::probability;
 use crate::mapping::Octree;
 use std::fmt::Write as _;
@@ -16,6 +18,9 @@ pub enum ErrorsFormat {
     Csv,
     /// Binary little-endian PLY: each cell's centre, coloured by its error.
     Ply,
+    /// An OctoMap `ColorOcTree` `.ot`: each cell an occupied leaf, coloured
+    /// by its error (octovis shows it as it shows a map).
+    ColourTree,
 }
 
 impl ErrorsFormat {
@@ -26,10 +31,11 @@ impl ErrorsFormat {
         let format = match path.extension().and_then(|e| e.to_str()) {
             Some(e) if e.eq_ignore_ascii_case("csv") => Self::Csv,
             Some(e) if e.eq_ignore_ascii_case("ply") => Self::Ply,
+            Some(e) if e.eq_ignore_ascii_case("ot") => Self::ColourTree,
             _ => {
                 return Err(Error::Usage(format!(
-                    "--errors {}: name a .csv (a table of the cells) or a .ply (a coloured \
-                     point cloud) file",
+                    "--errors {}: name a .csv (a table of the cells), a .ply (a coloured \
+                     point cloud) or a .ot (an OctoMap ColorOcTree, for octovis) file",
                     path.display()
                 )))
             }
@@ -49,6 +55,7 @@ impl ErrorsFormat {
         match self {
             Self::Csv => CSV_HEADER,
             Self::Ply => PLY_OPENING,
+            Self::ColourTree => OT_OPENING,
         }
     }
 
@@ -69,7 +76,11 @@ const CSV_HEADER: &str = "x,y,z,error,log_odds,probability\n";
 /// The PLY's first lines, up to what names it sigmap's.
 const PLY_OPENING: &str = "ply\nformat binary_little_endian 1.0\ncomment sigmap score --errors: ";
 
-/// The colour of a wrong cell in the PLY: false-free red, false-occupied
+/// The `.ot`'s first lines, up to what names it sigmap's (OctoMap's
+/// reader skips the comment).
+const OT_OPENING: &str = "# Octomap OcTree file\n# sigmap score --errors: ";
+
+/// The colour of a wrong cell in the PLY and the `.ot`: false-free red, false-occupied
 /// orange (as in `slice.svg`).
 fn colour(error: CellError) -> [u8; 3] {
     match error {
@@ -124,6 +135,20 @@ pub fn write_wrong_cells(
                 bytes.extend_from_slice(&colour(cell.error));
             }
             bytes
+        }
+        ErrorsFormat::ColourTree => {
+            let mut coloured: Vec<(u64, [u8; 3])> = cells
+                .iter()
+                .map(|cell| (cell.key.morton(), colour(cell.error)))
+                .collect();
+            coloured.sort_unstable_by_key(|&(code, _)| code);
+            let comment = format!(
+                "{}the scored cells the map calls wrongly, map frame\n# red: false-free \
+                 (truly occupied, called free); orange: false-occupied (truly free, called \
+                 occupied); each an occupied leaf\n",
+                OT_OPENING.split_once('\n').map_or("", |(_, c)| c)
+            );
+            colour_cells_to_ot(map.resolution(), &coloured, Clamp::OCTOMAP.max, &comment)
         }
     };
     crate::files::write_file(path, &bytes)

@@ -229,3 +229,88 @@ fn stamped_and_colour_trees_are_read_as_their_occupancy() {
     let error = parse(&no_id, Clamp::OCTOMAP).unwrap_err();
     assert!(error.contains("no `id` line"), "{error}");
 }
+
+/// A colour tree's leaves as its `.ot` body lists them: `(Morton code of the
+/// leaf's smallest cell, depth, log-odds, colour)`, depth first.
+fn colour_leaves(body: &[u8]) -> Vec<(u64, u8, f32, [u8; 3])> {
+    fn node(
+        body: &[u8],
+        at: &mut usize,
+        code: u64,
+        depth: u8,
+        out: &mut Vec<(u64, u8, f32, [u8; 3])>,
+    ) {
+        let value = f32::from_le_bytes(body[*at..*at + 4].try_into().unwrap());
+        let colour = [body[*at + 4], body[*at + 5], body[*at + 6]];
+        let mask = body[*at + 7];
+        *at += 8;
+        if mask == 0 {
+            out.push((code, depth, value, colour));
+        }
+        for child in 0..8u64 {
+            if mask & 1 << child != 0 {
+                let shift = 3 * (u32::from(DEPTH) - u32::from(depth) - 1);
+                node(body, at, code | child << shift, depth + 1, out);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    let mut at = 0;
+    node(body, &mut at, 0, 0, &mut out);
+    assert_eq!(at, body.len(), "one tree");
+    out
+}
+
+/// `colour_cells_to_ot` writes every cell as its own leaf in its colour,
+/// siblings of one colour included (none pruned), under white inner nodes:
+/// read back by sigmap's reader as the cells at the value, and with their
+/// colours by a walk of the body.
+#[test]
+fn colour_cells_are_written_each_a_leaf_in_its_colour() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    let mut cells: Vec<(u64, [u8; 3])> = (0..500)
+        .map(|_| {
+            let key = Key([
+                32760 + rng.random_range(0..8),
+                32760 + rng.random_range(0..8),
+                32766 + rng.random_range(0..4),
+            ]);
+            let colour = if rng.random_bool(0.5) {
+                [220, 30, 30]
+            } else {
+                [245, 150, 20]
+            };
+            (key.morton(), colour)
+        })
+        .collect();
+    // Eight siblings of one colour: a tree would prune them.
+    let base = Key([32000, 32000, 32000]).morton();
+    cells.extend((0..8).map(|child| (base | child, [1, 2, 3])));
+    cells.sort_unstable_by_key(|c| c.0);
+    cells.dedup_by_key(|c| c.0);
+    let bytes = colour_cells_to_ot(0.05, &cells, 3.5, "# a comment\n");
+    let (head, body) = split_header(&bytes);
+    assert!(
+        head.starts_with("# Octomap OcTree file\n# a comment\n"),
+        "{head}"
+    );
+    assert!(head.contains("id ColorOcTree\n"), "{head}");
+    let listed = colour_leaves(body);
+    let expected: Vec<_> = cells
+        .iter()
+        .map(|&(code, colour)| (code, DEPTH, 3.5, colour))
+        .collect();
+    assert_eq!(listed, expected);
+    let tree = parse(&bytes, Clamp::OCTOMAP).unwrap();
+    let mut leaves: Vec<_> = tree
+        .leaves()
+        .into_iter()
+        .map(|l| (l.key.morton(), l.depth, l.value))
+        .collect();
+    leaves.sort_unstable_by_key(|l| l.0);
+    let expected: Vec<_> = cells.iter().map(|&(code, _)| (code, DEPTH, 3.5)).collect();
+    assert_eq!(leaves, expected);
+    // No cells: an empty tree.
+    let empty = colour_cells_to_ot(0.05, &[], 3.5, "");
+    assert_eq!(parse(&empty, Clamp::OCTOMAP).unwrap(), Octree::new(0.05));
+}
