@@ -72,16 +72,7 @@ fn score_never_rewrites_a_csv_sigmap_did_not_write() {
     let dir = tempfile::tempdir().unwrap();
     let map = dir.path().join("m.ot");
     let (m, csv) = (map.to_str().unwrap(), dir.path().join("mine.csv"));
-    let out = sigmap(&[
-        "map",
-        "experiments/quickstart.toml",
-        "--method",
-        "ray_update",
-        "-q",
-        "--out",
-        m,
-    ]);
-    assert!(out.status.success());
+    common::quickstart_ray_update_map(&map);
     let score = [
         "score",
         m,

@@ -20,15 +20,7 @@ fn path(p: &Path) -> String {
 /// `errors.csv`, `errors.ply` and `errors.ot`, and its row in `row.csv`.
 fn score_with_errors(dir: &Path) -> (String, Vec<u8>, Row) {
     let map = dir.join("map.ot");
-    sigmap_ok(&[
-        "map",
-        "experiments/quickstart.toml",
-        "--method",
-        "ray_update",
-        "-q",
-        "--out",
-        &path(&map),
-    ]);
+    common::quickstart_ray_update_map(&map);
     let (csv, ply, row) = (
         dir.join("errors.csv"),
         dir.join("errors.ply"),

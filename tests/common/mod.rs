@@ -190,3 +190,33 @@ pub fn refused(args: &[&str], names: &str, says: &str) {
         "{args:?}: expected '{names}' and '{says}' in: {stderr}"
     );
 }
+
+/// Builds the C++ program `source` (a repository path) into `exe` with g++
+/// against Debian's liboctomap-dev.
+#[allow(dead_code)] // only the tests against liboctomap
+pub fn build_against_liboctomap(source: &str, exe: &std::path::Path) {
+    tool_ok(
+        Command::new("g++")
+            .args(["-O2", "-std=c++17"])
+            .arg(root().join(source))
+            .arg("-o")
+            .arg(exe)
+            .args(["-loctomap", "-loctomath"]),
+    );
+}
+
+/// `sigmap map` of the quickstart's first run with the ray update, written
+/// to `out` (`.ot` or `.bt`).
+#[allow(dead_code)] // only the tests that score a map
+pub fn quickstart_ray_update_map(out: &std::path::Path) {
+    let out = out.to_str().unwrap();
+    sigmap_ok(&[
+        "map",
+        "experiments/quickstart.toml",
+        "--method",
+        "ray_update",
+        "-q",
+        "--out",
+        out,
+    ]);
+}
