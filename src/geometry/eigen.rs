@@ -1,7 +1,7 @@
 //! The eigen-decomposition of a symmetric 3 × 3 matrix (the plane fits of
 //! beam pooling, docs/math.md §5.5: two for nearly every beam of a scan).
 //!
-//! [DESIGN] The smallest eigenvalue in closed form (the trigonometric
+//! \[DESIGN\] The smallest eigenvalue in closed form (the trigonometric
 //! solution of the characteristic cubic), its eigenvector as the largest
 //! cross product of two rows of `A − λI`, and the other two from the 2 × 2
 //! block of `A` on the plane normal to it, which one Jacobi rotation

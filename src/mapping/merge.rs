@@ -58,7 +58,7 @@ fn task_depth(resolution: f64) -> u8 {
 }
 
 /// Fuses `grid` into `tree`. The search runs on the current rayon pool, one
-/// task per node of [`task_depth`]; its updates are applied afterwards in
+/// task per node of `task_depth`; its updates are applied afterwards in
 /// depth-first order, so the tree is the same whatever the thread count.
 pub fn merge(tree: &mut Octree, grid: &LocalGrid, options: &MergeOptions) -> MergeStats {
     let surfaces = SurfaceCells::new(grid, &options.model, tree);
@@ -93,7 +93,7 @@ pub struct MergePlan {
 
 impl MergePlan {
     /// Searches `grid` (with its `surfaces`) on the cells of `geometry`'s
-    /// resolution, one rayon task per node of [`task_depth`]; the changes
+    /// resolution, one rayon task per node of `task_depth`; the changes
     /// are kept in depth-first order, so the tree they make is the same
     /// whatever the thread count.
     pub fn search(

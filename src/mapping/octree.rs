@@ -8,7 +8,7 @@
 //! Storage, by level (docs/performance.md, memory):
 //! - depths 0–14: 8-byte nodes (`f32` log-odds, `u32` index of a block of
 //!   eight children);
-//! - depth 15, the parents of finest cells: 4 bytes each ([`ParentSlot`]).
+//! - depth 15, the parents of finest cells: 4 bytes each (`ParentSlot`).
 //!   A parent stores no value: it answers the maximum of its known cells,
 //!   which is what an inner node holds. A pruned depth-15 leaf keeps its
 //!   log-odds in a pool of leaf values;

@@ -4,7 +4,7 @@
 //! update per scan and occupied wins; hit +0.85, miss −0.41, clamped to
 //! [−2, 3.5] (docs/octomap.md, "The update rule"; OctoMap's `insertPointCloud`).
 //! The rays are OctoMap's to the bit: keyed, cut and walked in its `float`
-//! and `double` operations ([`float`]). [`DiscreteScan`] gives the rays of
+//! and `double` operations (`float`). [`DiscreteScan`] gives the rays of
 //! its discretized insertion.
 
 use super::octree::{Clamp, Key, Octree, LOG_ODDS_HIT, LOG_ODDS_MISS};

@@ -7,7 +7,7 @@
 //! chord through it (§5.4, `mapping::chord`), so nothing is sampled along the
 //! beam and no bin width enters the model.
 //!
-//! [DESIGN] The grid's axes follow the nominal sensor, not the scene: grid x is
+//! \[DESIGN\] The grid's axes follow the nominal sensor, not the scene: grid x is
 //! the boresight (camera z), y the camera x, z the camera y. A beam at
 //! horizontal angle h and vertical angle v then has azimuth h and elevation v,
 //! the raster maps onto the angular bins one to one, and no viewpoint puts its

@@ -9,7 +9,7 @@
 //! once (a few cells at most, whatever the cell's angular extent) instead of
 //! every cell visiting every beam of its solid angle.
 //!
-//! [DESIGN] Cells are found by cutting the band into pieces no longer than a
+//! \[DESIGN\] Cells are found by cutting the band into pieces no longer than a
 //! cell edge and listing the cells of each piece's bounding box (at most two
 //! per axis), widened by a millionth of a cell; the exact ray/box chord then
 //! decides. The chord is computed as the merge computes it (same origin,

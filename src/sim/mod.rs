@@ -5,7 +5,7 @@
 //! ray casting; [`mesh`] readers), robots from URDF ([`robot`], inverse
 //! kinematics in [`ik`]), the laser range scanner ([`sensor`]), the error
 //! profiles ([`profile`]), the truth draw ([`truth`]), beam casting
-//! ([`scan`]: a [`scan::Scan`] is what a mapper may see, a
+//! ([`scan`]: a [`Scan`](crate::mapping::Scan) is what a mapper may see, a
 //! [`scan::ScanTruth`] what only scoring may) and the counter-based random
 //! streams ([`streams`]: one per run and per viewpoint, so results do not
 //! depend on threads).

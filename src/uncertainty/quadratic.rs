@@ -1,7 +1,7 @@
 //! A covariance that is a quadratic form in the homogeneous point
 //! `X̃ = [X; 1]`: `Γ(X)_ab = X̃ᵀ Q_ab X̃` (six 4x4 matrices, `a <= b`).
 //!
-//! [DESIGN] Both the first-order and the sigma-point covariances of a chain
+//! \[DESIGN\] Both the first-order and the sigma-point covariances of a chain
 //! have this form in the measured point (docs/math.md §3.6 for the sigma points;
 //! for the Jacobian, its blocks are affine in `X`), so both propagators build
 //! `Q` once per viewpoint and each point costs six small quadratic forms.

@@ -9,7 +9,7 @@
 //! with `d_i = D_i X̃`, `D_i = Δ_i − Δ̄`, `d_0 = −Δ̄ X̃` (the six measurement sigma
 //! points collapse into the `d_0` and `Γ_c` terms exactly).
 //!
-//! [DESIGN] Since every `D_i` is constant, the sum is a quadratic form in `X̃`
+//! \[DESIGN\] Since every `D_i` is constant, the sum is a quadratic form in `X̃`
 //! ([`QuadraticCovariance`]), built once per viewpoint: a point then costs six
 //! 4x4 quadratic forms whatever the number of sigma points.
 

@@ -9,7 +9,7 @@
 //! the node's cloud is a beam of direction `p / |p|` and range `|p|` with the
 //! profile's range and angular noise.
 //!
-//! [DESIGN] A recorded cloud comes without its scanner's raster, which the
+//! \[DESIGN\] A recorded cloud comes without its scanner's raster, which the
 //! OPDF merge bins beams by. The raster is recovered from the points: every
 //! node gets one angular grid when all its points lie in front of the
 //! sensor (+z, the camera convention `sigmap export` writes; the grid is

@@ -32,7 +32,7 @@ use std::sync::Mutex;
 /// How `sigmap run` runs an experiment.
 #[derive(Clone, Debug, Default)]
 pub struct RunOptions {
-    /// The results folder [default: `results/<name>`].
+    /// The results folder (default: `results/<name>`).
     pub out: Option<PathBuf>,
     /// Redo every run, discarding the folder's earlier results.
     pub fresh: bool,

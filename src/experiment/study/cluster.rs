@@ -137,7 +137,7 @@ fn quote(path: &Path) -> String {
 pub const MAX_TASKS: usize = 10_000;
 
 /// Submits the experiment file at `path` as `tasks` shards and a merge,
-/// into `out` [default: `results/<name>`]; with `resume`, only the shards
+/// into `out` (default: `results/<name>`); with `resume`, only the shards
 /// of the earlier submission in `out` that miss runs. `sbatch_args` go to
 /// every sbatch call.
 pub fn submit(

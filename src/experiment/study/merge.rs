@@ -15,7 +15,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 /// Joins the folders of `sigmap run --shard i/n` of the experiment file at
-/// `path` into `out` [default: `results/<name>`], checking that every shard
+/// `path` into `out` (default: `results/<name>`), checking that every shard
 /// ran the same inputs with this version and that no run is missing; the
 /// merged files are byte-identical to a one-machine run. Returns the folder.
 pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Result<PathBuf> {

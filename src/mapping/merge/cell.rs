@@ -18,7 +18,7 @@ pub(super) fn corner_offset(i: usize) -> [u16; 3] {
 }
 
 /// A finest cell as the cell model sees it: centre, half edge and corners
-/// (corner `i` as in [`corner_offset`]).
+/// (corner `i` as in `corner_offset`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Cell {
     /// The cube's centre (scene frame).
@@ -116,7 +116,7 @@ fn bin_box_beams<'a>(
 /// line crosses C, of their chord's first-hit probability `P(a ≤ λ ≤ b)` (a
 /// cell no centre line crosses takes the beams of the bin holding its centre,
 /// with its whole range extent as the chord). The search stops once `H`
-/// reaches `p_hi`, where [`combine`] stops looking.
+/// reaches `p_hi`, where `combine` stops looking.
 pub fn surface_inside(
     grid: &LocalGrid,
     model: &CellModel,

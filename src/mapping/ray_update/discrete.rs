@@ -33,7 +33,7 @@ impl DiscreteScan {
     /// [`no_return_point`](super::no_return_point), as `--export-rays`
     /// hands it to OctoMap.
     /// OctoMap keys the `float` points it is given and casts to the `float`
-    /// centres of their cells ([`Octree::key`], [`float::centre`]): so here.
+    /// centres of their cells ([`Octree::key`], `float::centre`): so here.
     /// A point outside the tree's cube is left out (OctoMap's unchecked key
     /// would wrap around).
     pub fn fill(

@@ -82,7 +82,7 @@ impl<'a> NominalBins<'a> {
         self.azimuth == *azimuth && self.elevation == *elevation
     }
 
-    /// The bin ([`bin_index`]) of beam
+    /// The bin (`bin_index`) of beam
     /// `i`'s direction `v` (grid frame, unit) when `v` lies close enough to
     /// the beam's nominal direction for the bin to be the same; `None`
     /// (undecided) otherwise.

@@ -25,7 +25,7 @@ use rayon::prelude::*;
 pub const STEPS: usize = 3;
 
 /// The most samples a viewpoint's grid adds per beam: the lattice of
-/// [`STEPS`] per spacing less the beams themselves.
+/// `STEPS` per spacing less the beams themselves.
 pub const SAMPLES_PER_BEAM: usize = STEPS * STEPS - 1;
 
 impl LocalGrid {

@@ -1,7 +1,7 @@
 //! The index's cells, stored as dense blocks of 8 × 8 × 8 finest cells
 //! found through a hash of the block's key.
 //!
-//! [DESIGN] A scan's surface bands fill a thin shell of cells, and
+//! \[DESIGN\] A scan's surface bands fill a thin shell of cells, and
 //! neighbouring beams (consecutive in the index's walk) reach the same
 //! cells. A hash of single cells spent most of the index's time in cache
 //! misses of its table; a block holds a band's cells and its neighbours', so
