@@ -6,7 +6,7 @@
 
 use sigmap::mapping::octomap_io::{is_occupied, read_octree};
 use sigmap::mapping::{Clamp, Key, Octree};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod common;
@@ -27,6 +27,24 @@ fn octomap_leaves(path: &Path) -> Vec<(Key, u8, u32)> {
             let key = Key(std::array::from_fn(|a| (f[a] - half) as u16));
             (key, depth, f[4])
         })
+        .collect();
+    leaves.sort_by_key(|&(key, depth, _)| (key.0, depth));
+    leaves
+}
+
+/// `tests/octomap/typed_trees.cpp` built into `dir`.
+fn typed_trees_program(dir: &Path) -> PathBuf {
+    let exe = dir.join("typed_trees");
+    common::build_against_liboctomap("tests/octomap/typed_trees.cpp", &exe);
+    exe
+}
+
+/// `tree`'s leaves as [`octomap_leaves`] lists them.
+fn sigmap_leaves(tree: Octree) -> Vec<(Key, u8, u32)> {
+    let mut leaves: Vec<_> = tree
+        .leaves()
+        .into_iter()
+        .map(|l| (l.key, l.depth, l.value.to_bits()))
         .collect();
     leaves.sort_by_key(|&(key, depth, _)| (key.0, depth));
     leaves
@@ -53,23 +71,13 @@ fn same_leaves(ours: &[(Key, u8, u32)], theirs: &[(Key, u8, u32)], what: &str) {
 #[ignore = "needs OctoMap's library (apt-get install liboctomap-dev) and g++; .ci/run runs it"]
 fn octomaps_stamped_and_colour_trees_are_read_leaf_for_leaf() {
     let dir = tempfile::tempdir().unwrap();
-    let exe = dir.path().join("typed_trees");
-    common::build_against_liboctomap("tests/octomap/typed_trees.cpp", &exe);
+    let exe = typed_trees_program(dir.path());
     tool_ok(Command::new(&exe).arg("0.02").arg(dir.path()));
     for stem in ["stamped", "colour"] {
         let theirs = octomap_leaves(&dir.path().join(format!("{stem}.leaves")));
         assert!(theirs.len() > 1000, "{stem}: {} leaves", theirs.len());
-        let as_listed = |tree: Octree| -> Vec<(Key, u8, u32)> {
-            let mut leaves: Vec<_> = tree
-                .leaves()
-                .into_iter()
-                .map(|l| (l.key, l.depth, l.value.to_bits()))
-                .collect();
-            leaves.sort_by_key(|&(key, depth, _)| (key.0, depth));
-            leaves
-        };
         let ot = read_octree(&dir.path().join(format!("{stem}.ot")), Clamp::OCTOMAP).unwrap();
-        same_leaves(&as_listed(ot), &theirs, &format!("{stem}.ot"));
+        same_leaves(&sigmap_leaves(ot), &theirs, &format!("{stem}.ot"));
         let bt = read_octree(&dir.path().join(format!("{stem}.bt")), Clamp::OCTOMAP).unwrap();
         let classes: Vec<_> = theirs
             .iter()
@@ -82,7 +90,7 @@ fn octomaps_stamped_and_colour_trees_are_read_leaf_for_leaf() {
                 (key, depth, bound.to_bits())
             })
             .collect();
-        same_leaves(&as_listed(bt), &classes, &format!("{stem}.bt"));
+        same_leaves(&sigmap_leaves(bt), &classes, &format!("{stem}.bt"));
     }
 }
 
@@ -94,8 +102,7 @@ fn octomaps_stamped_and_colour_trees_are_read_leaf_for_leaf() {
 #[ignore = "needs OctoMap's library (apt-get install liboctomap-dev) and g++; .ci/run runs it"]
 fn the_errors_colour_tree_opens_in_octomaps_reader() {
     let dir = tempfile::tempdir().unwrap();
-    let exe = dir.path().join("typed_trees");
-    common::build_against_liboctomap("tests/octomap/typed_trees.cpp", &exe);
+    let exe = typed_trees_program(dir.path());
     let map = dir.path().join("map.ot");
     common::quickstart_ray_update_map(&map);
     let (ot, csv) = (dir.path().join("wrong.ot"), dir.path().join("wrong.csv"));

@@ -8,7 +8,8 @@ use crate::error::{Error, Result};
 use std::io::{BufRead, Read};
 use std::path::Path;
 
-const OT_HEADER: &str = "# Octomap OcTree file";
+/// The first line of a `.ot` file.
+pub(crate) const OT_HEADER: &str = "# Octomap OcTree file";
 const BT_HEADER: &str = "# Octomap OcTree binary file";
 
 /// OctoMap's occupancy test: log-odds at or above 0 (`isNodeOccupied`).

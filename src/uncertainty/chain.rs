@@ -145,8 +145,8 @@ fn spec(sigma: Option<&Vec<f64>>, covariance: Option<&Vec<Vec<f64>>>) -> Covaria
 }
 
 /// Whether `path` reads as an experiment file (TOML with a `scene` and a
-/// `[robot]`), given where a chain file belongs.
-/// Read only within the size any TOML input may have.
+/// `[robot]`), given where a chain file belongs; read only within the size
+/// any TOML input may have.
 fn is_experiment(path: &Path) -> bool {
     if check_input_file(path, MAX_TOML_BYTES).is_err() {
         return false;

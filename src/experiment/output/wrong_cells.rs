@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::eval::scores::{CellError, WrongCell};
-use crate::mapping::octomap_io::colour_cells_to_ot;
+use crate::mapping::octomap_io::{colour_cells_to_ot, OT_HEADER};
 use crate::mapping::octree::{Clamp, DEPTH};
 use crate::mapping::opdf::probability;
 use crate::mapping::Octree;
@@ -51,22 +51,22 @@ impl ErrorsFormat {
     }
 
     /// How a file of this format begins.
-    fn opening(self) -> &'static str {
+    fn opening(self) -> String {
         match self {
-            Self::Csv => CSV_HEADER,
-            Self::Ply => PLY_OPENING,
-            Self::ColourTree => OT_OPENING,
+            Self::Csv => CSV_HEADER.into(),
+            Self::Ply => PLY_OPENING.into(),
+            Self::ColourTree => format!("{OT_HEADER}\n{OT_COMMENT}"),
         }
     }
 
     /// Whether the file at `path` begins as this format's lists do.
     fn wrote(self, path: &Path) -> bool {
         use std::io::Read as _;
-        let opening = self.opening().as_bytes();
+        let opening = self.opening();
         let mut start = vec![0; opening.len()];
         std::fs::File::open(path)
             .and_then(|mut file| file.read_exact(&mut start))
-            .is_ok_and(|()| start == opening)
+            .is_ok_and(|()| start == opening.as_bytes())
     }
 }
 
@@ -76,9 +76,9 @@ const CSV_HEADER: &str = "x,y,z,error,log_odds,probability\n";
 /// The PLY's first lines, up to what names it sigmap's.
 const PLY_OPENING: &str = "ply\nformat binary_little_endian 1.0\ncomment sigmap score --errors: ";
 
-/// The `.ot`'s first lines, up to what names it sigmap's (OctoMap's
-/// reader skips the comment).
-const OT_OPENING: &str = "# Octomap OcTree file\n# sigmap score --errors: ";
+/// The `.ot` header's comment, after its first line, up to what names it
+/// sigmap's (OctoMap's reader skips comments).
+const OT_COMMENT: &str = "# sigmap score --errors: ";
 
 /// The colour of a wrong cell in the PLY and the `.ot`: false-free red, false-occupied
 /// orange (as in `slice.svg`).
@@ -143,10 +143,9 @@ pub fn write_wrong_cells(
                 .collect();
             coloured.sort_unstable_by_key(|&(code, _)| code);
             let comment = format!(
-                "{}the scored cells the map calls wrongly, map frame\n# red: false-free \
-                 (truly occupied, called free); orange: false-occupied (truly free, called \
-                 occupied); each an occupied leaf\n",
-                OT_OPENING.split_once('\n').map_or("", |(_, c)| c)
+                "{OT_COMMENT}the scored cells the map calls wrongly, map frame\n# red: \
+                 false-free (truly occupied, called free); orange: false-occupied (truly free, \
+                 called occupied); each an occupied leaf\n"
             );
             colour_cells_to_ot(map.resolution(), &coloured, Clamp::OCTOMAP.max, &comment)
         }
