@@ -30,44 +30,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
                 .into(),
         ));
     }
-    // The command line's values replace the file's and are checked as
-    // the file's are (the resolution's range, the clearing bound of the
-    // method, the sample budget), before the simulation.
-    let overrides = Overrides {
-        resolution: args.resolution,
-        seed: args.run.seed,
-        beam_pooling: args.beam_pooling,
-        interpolate_beams: args.interpolate_beams.as_deref().map(|on| on == "on"),
-        risk: args.risk.map(|r| r.0),
-        methods: Some(vec![args.method]),
-        grid_offset: None,
-    };
-    let cell = Experiment::cell_values(experiment, args.cell).map_err(super::cell_flag)?;
-    let experiment = Experiment::load_with(experiment, &cell, &overrides).map_err(|e| {
-        // The library says which value is wrong; name the flag that gave it.
-        let given = [
-            (
-                "interpolate_beams",
-                "--interpolate-beams",
-                args.interpolate_beams.is_some(),
-            ),
-            ("resolution", "--resolution", args.resolution.is_some()),
-            (
-                "beam_pooling",
-                "--beam-pooling",
-                args.beam_pooling.is_some(),
-            ),
-            ("risk", "--risk", args.risk.is_some()),
-        ];
-        // A value's error leads with its key (`risk = 0.7 must be …`); one
-        // that only names it (TOML's list of known fields) is the file's.
-        let led_by =
-            |key: &str| matches!(&e, Error::Input { message, .. } if message.starts_with(key));
-        match given.iter().find(|(key, _, on)| *on && led_by(key)) {
-            Some((_, flag, _)) => e.context(format!("{flag}: ")),
-            None => e,
-        }
-    })?;
+    let experiment = load_experiment(experiment, &args)?;
     let (resolution, seed) = (experiment.resolution(), experiment.seed());
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")
@@ -80,21 +43,7 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         let scene = experiment.scene();
         scene.check_truth_region(&scene.workspace, resolution, "the whole workspace")?;
     }
-    if args.cell.is_none() && !experiment.sweep().is_empty() && !args.run.quiet {
-        let cells = experiment.cells();
-        eprintln!(
-            "note: the experiment sweeps {} cells and this maps the base experiment (the file's \
-             own values); --cell K maps sweep cell K (0 to {}, in the order of summary.csv), as \
-             `sigmap run` does",
-            cells.len(),
-            cells.len() - 1
-        );
-    }
-    if let Some(note) =
-        super::samples_note(&experiment).filter(|_| args.method.builds_grids() && !args.run.quiet)
-    {
-        eprintln!("{note}");
-    }
+    print_notes(&args, &experiment);
     let bar = progress_bar(experiment.viewpoints().len(), "simulating", args.run.quiet);
     let run = with_threads(args.run.threads, || {
         experiment::simulate(&experiment, seed, |d| bar.set_position(d as u64))
@@ -122,6 +71,68 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         report(&args, resolution, &tree, beams, seconds, &out);
     }
     Ok(())
+}
+
+/// The experiment at `path` with the command line's values in place of the
+/// file's, checked as the file's are (the resolution's range, the clearing
+/// bound of the method, the sample budget), before the simulation; an
+/// error a flag's value caused names the flag.
+fn load_experiment(path: &Path, args: &MapArgs) -> Result<Experiment> {
+    let overrides = Overrides {
+        resolution: args.resolution,
+        seed: args.run.seed,
+        beam_pooling: args.beam_pooling,
+        interpolate_beams: args.interpolate_beams.as_deref().map(|on| on == "on"),
+        risk: args.risk.map(|r| r.0),
+        methods: Some(vec![args.method]),
+        grid_offset: None,
+    };
+    let cell = Experiment::cell_values(path, args.cell).map_err(super::cell_flag)?;
+    Experiment::load_with(path, &cell, &overrides).map_err(|e| {
+        // The library says which value is wrong; name the flag that gave it.
+        let given = [
+            (
+                "interpolate_beams",
+                "--interpolate-beams",
+                args.interpolate_beams.is_some(),
+            ),
+            ("resolution", "--resolution", args.resolution.is_some()),
+            (
+                "beam_pooling",
+                "--beam-pooling",
+                args.beam_pooling.is_some(),
+            ),
+            ("risk", "--risk", args.risk.is_some()),
+        ];
+        // A value's error leads with its key (`risk = 0.7 must be …`); one
+        // that only names it (TOML's list of known fields) is the file's.
+        let led_by =
+            |key: &str| matches!(&e, Error::Input { message, .. } if message.starts_with(key));
+        match given.iter().find(|(key, _, on)| *on && led_by(key)) {
+            Some((_, flag, _)) => e.context(format!("{flag}: ")),
+            None => e,
+        }
+    })
+}
+
+/// What the user should know before the run: which sweep cell is mapped,
+/// and whether the default samples were left off.
+fn print_notes(args: &MapArgs, experiment: &Experiment) {
+    if args.cell.is_none() && !experiment.sweep().is_empty() && !args.run.quiet {
+        let cells = experiment.cells();
+        eprintln!(
+            "note: the experiment sweeps {} cells and this maps the base experiment (the file's \
+             own values); --cell K maps sweep cell K (0 to {}, in the order of summary.csv), as \
+             `sigmap run` does",
+            cells.len(),
+            cells.len() - 1
+        );
+    }
+    if let Some(note) =
+        super::samples_note(experiment).filter(|_| args.method.builds_grids() && !args.run.quiet)
+    {
+        eprintln!("{note}");
+    }
 }
 
 /// `sigmap map --scans GRAPH --profile PROFILE`.

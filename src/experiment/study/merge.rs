@@ -9,7 +9,7 @@ use crate::experiment::run::runner::{read_rows, RunRow, TimingRow};
 use crate::experiment::study::batch::{
     finalize, results_dir, shard_runs, write_manifest, write_report_with_slice, Manifest,
 };
-use crate::experiment::study::journal::{fingerprint, read_journal, Wanted};
+use crate::experiment::study::journal::{fingerprint, read_journal, Inputs, Wanted};
 use crate::experiment::Experiment;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -34,6 +34,60 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
     let (mut rows, mut timings) = (Vec::new(), Vec::new());
     let mut seen_shards: Vec<(String, PathBuf)> = Vec::new();
     for dir in shards {
+        let shard = Shard {
+            dir,
+            experiment: &experiment,
+            path,
+            labels: &labels,
+        };
+        let (shard_rows, shard_timings) = shard.read(&expected, &mut seen_shards)?;
+        rows.extend(shard_rows);
+        timings.extend(shard_timings);
+    }
+    // Each run once: a journal record of a run that runs.csv also holds
+    // (a shard killed while it finalised) counts once.
+    let wanted = Wanted {
+        cells: &labels,
+        seeds: experiment.seeds(),
+        methods: experiment.methods(),
+    };
+    wanted.keep(&mut rows);
+    wanted.keep(&mut timings);
+    let missing = missing_runs(&experiment, &labels, &rows);
+    if let Some(first) = missing.first() {
+        return Err(Error::Usage(format!(
+            "{} runs are missing from the shards (first: {first}); finish them with `sigmap run ... --shard i/n`",
+            missing.len(),
+        )));
+    }
+    let out = results_dir(&experiment, out);
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let (study, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
+    write_manifest(&out, &experiment, &expected, 1, 1)?;
+    copy_first_run_files(shards, &out)?;
+    write_report_with_slice(&out, &experiment, &study, &expected, charts)?;
+    Ok(out)
+}
+
+/// One shard's folder of the experiment file at `path`.
+struct Shard<'a> {
+    dir: &'a Path,
+    experiment: &'a Experiment,
+    path: &'a Path,
+    labels: &'a [String],
+}
+
+impl Shard<'_> {
+    /// The shard's runs and timings (runs.csv and its journal), after
+    /// checking that it ran the `expected` inputs with this version, that
+    /// no shard of `seen` was the same share, and that it holds only runs
+    /// of its share; its share is added to `seen`.
+    fn read(
+        &self,
+        expected: &Inputs,
+        seen: &mut Vec<(String, PathBuf)>,
+    ) -> Result<(Vec<RunRow>, Vec<TimingRow>)> {
+        let (dir, experiment) = (self.dir, self.experiment);
         let manifest_path = dir.join("run.toml");
         let manifest: Manifest = crate::error::read_toml(&manifest_path)?;
         if manifest.experiment != experiment.name() || manifest.fingerprint != expected.fingerprint
@@ -45,7 +99,7 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
                     manifest.experiment,
                     manifest.fingerprint,
                     expected.fingerprint,
-                    path.display()
+                    self.path.display()
                 ),
             ));
         }
@@ -60,10 +114,10 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
                 ),
             ));
         }
-        let share = shard_share(&manifest, &dir.join("run.toml"), &experiment, &labels)?;
-        if let Some(other) = seen_shards.iter().find(|(s, _)| *s == manifest.shard) {
+        let share = shard_share(&manifest, &manifest_path, experiment, self.labels)?;
+        if let Some(other) = seen.iter().find(|(s, _)| *s == manifest.shard) {
             return Err(Error::input(
-                dir.join("run.toml"),
+                &manifest_path,
                 format!(
                     "shard {} is given twice (also {}); give each shard's folder once",
                     manifest.shard,
@@ -71,60 +125,43 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
                 ),
             ));
         }
-        seen_shards.push((manifest.shard.clone(), dir.clone()));
-        let shard_rows: Vec<RunRow> = read_rows(&dir.join("runs.csv"))?;
-        check_rows(&dir.join("runs.csv"), &shard_rows, &share, &experiment, 2)?;
+        seen.push((manifest.shard.clone(), dir.to_path_buf()));
+        let mut rows: Vec<RunRow> = read_rows(&dir.join("runs.csv"))?;
+        check_rows(&dir.join("runs.csv"), &rows, &share, experiment, 2)?;
         let (journal_rows, journal_timings) = read_journal(&dir.join("runs.journal.csv"))?;
-        check_rows(
-            &dir.join("runs.journal.csv"),
-            &journal_rows,
-            &share,
-            &experiment,
-            0,
-        )?;
-        rows.extend(shard_rows);
+        let journal = dir.join("runs.journal.csv");
+        check_rows(&journal, &journal_rows, &share, experiment, 0)?;
         rows.extend(journal_rows);
-        timings.extend(read_rows::<TimingRow>(&dir.join("timings.csv"))?);
+        let mut timings = read_rows::<TimingRow>(&dir.join("timings.csv"))?;
         timings.extend(journal_timings);
+        Ok((rows, timings))
     }
-    // Each run once: a journal record of a run that runs.csv also holds
-    // (a shard killed while it finalised) counts once.
-    let wanted = Wanted {
-        cells: &labels,
-        seeds: experiment.seeds(),
-        methods: experiment.methods(),
-    };
-    wanted.keep(&mut rows);
-    wanted.keep(&mut timings);
-    let have: BTreeSet<(String, u64, String)> = rows
+}
+
+/// The runs (cell, seed, method) of `experiment` that `rows` lack, as
+/// "cell 'c' seed s m", in the experiment's order.
+fn missing_runs(experiment: &Experiment, labels: &[String], rows: &[RunRow]) -> Vec<String> {
+    let have: BTreeSet<(&str, u64, &str)> = rows
         .iter()
-        .map(|r| (r.cell.clone(), r.seed, r.method.clone()))
+        .map(|r| (r.cell.as_str(), r.seed, r.method.as_str()))
         .collect();
-    let missing: Vec<String> = labels
+    let methods = experiment.methods();
+    labels
         .iter()
         .flat_map(|c| {
-            let methods = experiment.methods();
             experiment
                 .seeds()
                 .iter()
                 .flat_map(move |s| methods.iter().map(move |m| (c, *s, m)))
         })
-        .filter(|(c, s, m)| !have.contains(&((*c).clone(), *s, m.as_str().to_string())))
+        .filter(|(c, s, m)| !have.contains(&(c.as_str(), *s, m.as_str())))
         .map(|(c, s, m)| format!("cell '{c}' seed {s} {m}"))
-        .collect();
-    if !missing.is_empty() {
-        return Err(Error::Usage(format!(
-            "{} runs are missing from the shards (first: {}); finish them with `sigmap run ... --shard i/n`",
-            missing.len(),
-            missing[0]
-        )));
-    }
-    let out = results_dir(&experiment, out);
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    let (study, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
-    write_manifest(&out, &experiment, &expected, 1, 1)?;
-    // The first run's maps, error clouds and slice live in the shard that
-    // ran it.
+        .collect()
+}
+
+/// The first run's maps, error clouds and slice, copied into `out` from
+/// the shard that ran it.
+fn copy_first_run_files(shards: &[PathBuf], out: &Path) -> Result<()> {
     for dir in shards {
         for entry in std::fs::read_dir(dir)
             .map_err(|e| Error::io(dir, e))?
@@ -139,8 +176,7 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
             }
         }
     }
-    write_report_with_slice(&out, &experiment, &study, &expected, charts)?;
-    Ok(out)
+    Ok(())
 }
 
 /// The runs (cell label, seed) a shard's `run.toml` says it ran: its share
