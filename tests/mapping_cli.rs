@@ -303,37 +303,42 @@ fn score_gives_a_maps_run_row() {
 }
 
 #[test]
-fn the_registered_truth_is_mapped_and_scored_as_run_scores_it() {
-    // `sigmap map --method registered_truth` writes the reference that `run`
-    // scores; recorded scans have no truth to give it.
-    let dir = tempfile::tempdir().unwrap();
-    let (_, ours, theirs) = map_run_and_score(dir.path(), "registered_truth", 2);
-    assert_same_scores(&ours, &theirs);
-    let precision: f64 = theirs
-        .iter()
-        .find(|(c, _)| c == "precision")
-        .unwrap()
-        .1
-        .parse()
-        .unwrap();
-    assert!(
-        precision < 1.0,
-        "the registration error costs the truth: {precision}"
-    );
-    let refused = sigmap(&[
-        "map",
-        "--scans",
-        "no.graph",
-        "--profile",
-        "experiments/profiles/collaborative_poses.toml",
-        "--method",
-        "registered_truth",
-        "--out",
-        &path(&dir.path().join("x.bt")),
-    ]);
-    let stderr = String::from_utf8_lossy(&refused.stderr);
-    assert_eq!(refused.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("scoring reference"), "{stderr}");
+fn the_truth_references_are_mapped_and_scored_as_run_scores_them() {
+    // `sigmap map --method registered_truth` (or consensus_truth) writes the
+    // reference that `run` scores; recorded scans have no truth to give it.
+    for method in ["registered_truth", "consensus_truth"] {
+        let dir = tempfile::tempdir().unwrap();
+        let (_, ours, theirs) = map_run_and_score(dir.path(), method, 2);
+        assert_same_scores(&ours, &theirs);
+        let precision: f64 = theirs
+            .iter()
+            .find(|(c, _)| c == "precision")
+            .unwrap()
+            .1
+            .parse()
+            .unwrap();
+        assert!(
+            precision < 1.0,
+            "{method}: the pose errors cost the truth: {precision}"
+        );
+        let refused = sigmap(&[
+            "map",
+            "--scans",
+            "no.graph",
+            "--profile",
+            "experiments/profiles/collaborative_poses.toml",
+            "--method",
+            method,
+            "--out",
+            &path(&dir.path().join("x.bt")),
+        ]);
+        let stderr = String::from_utf8_lossy(&refused.stderr);
+        assert_eq!(refused.status.code(), Some(2), "{stderr}");
+        assert!(
+            stderr.contains(&format!("{method} is a scoring reference")),
+            "{stderr}"
+        );
+    }
 }
 
 #[test]

@@ -5,10 +5,11 @@
 use super::{progress_bar, resolution_arg, with_threads, MapArgs};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::KeyBox;
+use crate::experiment::run::consensus_truth::consensus_truth;
 use crate::experiment::run::recorded::{map_recorded, read_scan_graph, RecordedOptions};
 use crate::experiment::run::runner::registered_truth;
 use crate::experiment::{self, write_rays, Experiment, Overrides};
-use crate::mapping::method::REGISTERED_TRUTH_FROM_SCANS;
+use crate::mapping::method::truth_from_scans;
 use crate::mapping::octomap_io::{check_octree_path, write_octree};
 use crate::mapping::octree::Octree;
 use crate::mapping::settings::{MapProbabilities, MapSettings, OpdfDefaults};
@@ -38,8 +39,8 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
             .join(format!("map_{}.bt", args.method))
     });
     check_octree_path(&out)?;
-    if args.method == Method::RegisteredTruth {
-        // The whole workspace's truth, as the registration places it.
+    if args.method.is_truth() {
+        // The whole workspace's truth, as the registration (and the scans) place it.
         let scene = experiment.scene();
         scene.check_truth_region(&scene.workspace, resolution, "the whole workspace")?;
     }
@@ -59,6 +60,8 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
     let start = Instant::now();
     let tree = if args.method == Method::RegisteredTruth {
         registered_truth(&experiment, &run.truth, resolution, &offset, &KeyBox::ALL)
+    } else if args.method == Method::ConsensusTruth {
+        consensus_truth(&experiment, &run.scans, &run.truth, &offset, &KeyBox::ALL)
     } else {
         with_threads(args.run.threads, || {
             build_map(&view, &run.scans, args.method, resolution, &offset)
@@ -148,8 +151,8 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
         ));
     };
     check_octree_path(out)?;
-    if args.method == Method::RegisteredTruth {
-        return Err(Error::Usage(REGISTERED_TRUTH_FROM_SCANS.into()));
+    if args.method.is_truth() {
+        return Err(Error::Usage(truth_from_scans(args.method)));
     }
     if args.run.seed.is_some() {
         return Err(Error::Usage(
@@ -206,7 +209,7 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
 /// Prints what was built.
 fn report(args: &MapArgs, resolution: f64, tree: &Octree, beams: usize, seconds: f64, out: &Path) {
     let stats = tree.stats();
-    let rate = if args.method == Method::RegisteredTruth {
+    let rate = if args.method.is_truth() {
         // Voxelised from the truth, not built from the beams.
         format!("voxelised in {seconds:.3} s")
     } else {

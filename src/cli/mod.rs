@@ -176,7 +176,8 @@ pub(crate) struct MapArgs {
     /// blind, jacobian, unscented, correlated, ray_update or
     /// ray_update_discrete (OctoMap's insertion with discretize = true); or
     /// registered_truth (the truth as the run's scene registration places
-    /// it; not for --scans).
+    /// it) or consensus_truth (as its scans together place it; neither for
+    /// --scans).
     #[arg(long, default_value = "unscented", value_parser = method_parser())]
     method: crate::mapping::Method,
     /// Finest voxel edge (m) [default: the experiment's `resolution`; with

@@ -8,7 +8,7 @@ use super::measured::{
     measured_ranges, pooled_ray_ends, raw_point, ray_inputs_into, surface_point,
 };
 use super::merge::MergePlan;
-use super::method::{propagator, scan_chain, split_chain, Method, REGISTERED_TRUTH_FROM_SCANS};
+use super::method::{propagator, scan_chain, split_chain, truth_from_scans, Method};
 use super::pipeline::prepare_and_insert;
 use super::pooling::{Pooled, Pooling};
 use super::ray_update::{DiscreteScan, RayUpdater};
@@ -115,8 +115,8 @@ pub fn build_map_with(
 /// Refuses what `method` cannot build from scans laid out as `view` says,
 /// before anything is built.
 fn check_method(view: &MapperView, scans: usize, method: Method, resolution: f64) -> Result<()> {
-    if method == Method::RegisteredTruth {
-        return Err(Error::Usage(REGISTERED_TRUTH_FROM_SCANS.into()));
+    if method.is_truth() {
+        return Err(Error::Usage(truth_from_scans(method)));
     }
     if !method.builds_grids() {
         return Ok(());

@@ -36,11 +36,17 @@ pub enum Method {
     /// A scoring reference for `sigmap run` (`runner::registered_truth`): the
     /// ceiling for any map that cannot see the registration error.
     RegisteredTruth,
+    /// Not a mapper: the true occupancy as the run's scans together place
+    /// it, moved by the registration's error and by the viewpoints' mean
+    /// displacement, which no map built from the scans alone can undo
+    /// (`experiment::run::consensus_truth`, docs/math.md §7.5). A scoring reference
+    /// for `sigmap run`.
+    ConsensusTruth,
 }
 
 impl Method {
     /// Every method.
-    pub const ALL: [Method; 7] = [
+    pub const ALL: [Method; 8] = [
         Method::Blind,
         Method::Jacobian,
         Method::Unscented,
@@ -48,15 +54,19 @@ impl Method {
         Method::RayUpdate,
         Method::RayUpdateDiscrete,
         Method::RegisteredTruth,
+        Method::ConsensusTruth,
     ];
 
     /// Whether it builds local grids from propagated beams (the OPDF
     /// methods), not rays or the truth.
     pub fn builds_grids(self) -> bool {
-        !matches!(
-            self,
-            Method::RayUpdate | Method::RayUpdateDiscrete | Method::RegisteredTruth
-        )
+        !(self.casts_rays() || self.is_truth())
+    }
+
+    /// Whether it is a scoring reference made from a simulated run's truth
+    /// (`registered_truth`, `consensus_truth`), not a map built from scans.
+    pub fn is_truth(self) -> bool {
+        matches!(self, Method::RegisteredTruth | Method::ConsensusTruth)
     }
 
     /// Whether it is OctoMap's ray update (either insertion).
@@ -74,6 +84,7 @@ impl Method {
             Method::RayUpdate => "ray_update",
             Method::RayUpdateDiscrete => "ray_update_discrete",
             Method::RegisteredTruth => "registered_truth",
+            Method::ConsensusTruth => "consensus_truth",
         }
     }
 }
@@ -93,17 +104,20 @@ impl FromStr for Method {
             .ok_or_else(|| {
                 format!(
                     "unknown method '{s}' (use blind, jacobian, unscented, correlated, \
-                     ray_update, ray_update_discrete or registered_truth)"
+                     ray_update, ray_update_discrete, registered_truth or consensus_truth)"
                 )
             })
     }
 }
 
-/// Why scans cannot give `registered_truth`.
-pub const REGISTERED_TRUTH_FROM_SCANS: &str =
-    "registered_truth is a scoring reference built from a simulated run's truth, not from scans: \
-     give an experiment (`sigmap map EXPERIMENT --method registered_truth`, or list it in the \
-     experiment's `methods` for `sigmap run`)";
+/// Why scans cannot give `method`, a scoring reference ([`Method::is_truth`]).
+pub fn truth_from_scans(method: Method) -> String {
+    format!(
+        "{method} is a scoring reference built from a simulated run's truth, not from scans: \
+         give an experiment (`sigmap map EXPERIMENT --method {method}`, or list it in the \
+         experiment's `methods` for `sigmap run`)"
+    )
+}
 
 /// The propagator of an OPDF method for one viewpoint's chain: the
 /// per-point marginal (for `correlated`, the full covariance, as its
@@ -120,7 +134,10 @@ pub fn propagator(
         Method::Unscented | Method::Correlated => {
             Some(Box::new(UnscentedPropagator::new(chain, sigma_set)))
         }
-        Method::RayUpdate | Method::RayUpdateDiscrete | Method::RegisteredTruth => None,
+        Method::RayUpdate
+        | Method::RayUpdateDiscrete
+        | Method::RegisteredTruth
+        | Method::ConsensusTruth => None,
     }
 }
 

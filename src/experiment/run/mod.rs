@@ -3,6 +3,7 @@
 //! (`external`), mapping scans recorded elsewhere (`recorded`) and scoring
 //! maps built elsewhere (`scoring`).
 
+pub mod consensus_truth;
 pub mod external;
 pub mod recorded;
 pub mod runner;

@@ -5,6 +5,7 @@ use crate::error::{Error, Result};
 use crate::eval::ground_truth::{voxelise_at, voxelise_within, KeyBox};
 use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
+use crate::experiment::run::consensus_truth::consensus_truth;
 use crate::experiment::run::external::MapperRun;
 use crate::experiment::study::metrics::Measured;
 use crate::experiment::{simulate, Experiment, RunMethod, RunTruth, SimulatedRun};
@@ -238,6 +239,13 @@ impl<'a> SeedRun<'a> {
                 experiment,
                 &self.run.truth,
                 experiment.resolution(),
+                &self.offset,
+                &self.region,
+            )),
+            RunMethod::Own(Method::ConsensusTruth) => Ok(consensus_truth(
+                experiment,
+                &self.run.scans,
+                &self.run.truth,
                 &self.offset,
                 &self.region,
             )),
