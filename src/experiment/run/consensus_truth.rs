@@ -87,15 +87,58 @@ pub fn consensus_truth(
     )
 }
 
+/// Test support: the run's true hits as the nominal chains place them in the
+/// map frame (off cell faces, within `TOUCH`), counted over the cells where
+/// `reference` holds a value: (hits, of those in `reference`'s occupied cells,
+/// in `other`'s).
 #[cfg(test)]
-mod tests {
-    use super::*;
+pub(crate) fn hits_placed_by_the_nominal_chain(
+    experiment: &Experiment,
+    run: &crate::experiment::SimulatedRun,
+    offset: &Vector3,
+    (reference, other): (&Octree, &Octree),
+) -> (usize, usize, usize) {
     use crate::eval::ground_truth::TOUCH;
-    use crate::experiment::run::runner::{quickstart_with_profile, registered_truth};
-    use crate::experiment::simulate;
     use crate::geometry::Point3;
     use crate::mapping::octomap_io::is_occupied;
     use crate::mapping::octree::DEPTH;
+    let resolution = reference.resolution();
+    let (mut hits, mut in_reference, mut in_other) = (0, 0, 0);
+    for (scan, seen) in run.scans.iter().zip(&run.truth.scans) {
+        let map_from_camera = scan.chain.scene_from_camera();
+        for (beam, d) in seen.beams.iter().zip(experiment.scanner().directions()) {
+            if !beam.range.is_finite() {
+                continue;
+            }
+            let point = map_from_camera * Point3::from(d * beam.range) + offset;
+            // A surface point is inside its cell's solid unless it lies on a
+            // cell face (within TOUCH): those are left out.
+            let cell = (point.coords / resolution).map(|x| x - x.floor());
+            if cell
+                .iter()
+                .any(|&f| f * resolution < 2.0 * TOUCH || (1.0 - f) * resolution < 2.0 * TOUCH)
+            {
+                continue;
+            }
+            let value = |tree: &Octree| tree.key(&point).and_then(|k| tree.query(&k, DEPTH));
+            // Cells whose centre the error moves out of the workspace have
+            // no truth.
+            let Some(reference_value) = value(reference) else {
+                continue;
+            };
+            hits += 1;
+            in_reference += usize::from(is_occupied(reference_value));
+            in_other += usize::from(value(other).is_some_and(is_occupied));
+        }
+    }
+    (hits, in_reference, in_other)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::run::runner::{quickstart_with_profile, registered_truth};
+    use crate::experiment::simulate;
 
     /// The quickstart under `profile` (a profile file's body), with its
     /// first `views` viewpoints only.
@@ -152,31 +195,8 @@ mod tests {
         let offset = experiment.map_offset(seed);
         let ours = consensus_truth(&experiment, &run.scans, &run.truth, &offset, &KeyBox::ALL);
         let registered = registered_truth(&experiment, &run.truth, 0.01, &offset, &KeyBox::ALL);
-        let (mut hits, mut in_ours, mut in_registered) = (0, 0, 0);
-        for (scan, seen) in run.scans.iter().zip(&run.truth.scans) {
-            let map_from_camera = scan.chain.scene_from_camera();
-            for (beam, d) in seen.beams.iter().zip(experiment.scanner().directions()) {
-                if !beam.range.is_finite() {
-                    continue;
-                }
-                let point = map_from_camera * Point3::from(d * beam.range) + offset;
-                // A point on a cell face (within TOUCH) is left out.
-                let cell = (point.coords / 0.01).map(|x| x - x.floor());
-                if cell
-                    .iter()
-                    .any(|&f| f * 0.01 < 2.0 * TOUCH || (1.0 - f) * 0.01 < 2.0 * TOUCH)
-                {
-                    continue;
-                }
-                let value = |tree: &Octree| tree.key(&point).and_then(|k| tree.query(&k, DEPTH));
-                let Some(our_value) = value(&ours) else {
-                    continue;
-                };
-                hits += 1;
-                in_ours += usize::from(is_occupied(our_value));
-                in_registered += usize::from(value(&registered).is_some_and(is_occupied));
-            }
-        }
+        let (hits, in_ours, in_registered) =
+            hits_placed_by_the_nominal_chain(&experiment, &run, &offset, (&ours, &registered));
         assert!(hits > 5_000, "{hits} hits");
         assert_eq!(in_ours, hits, "every hit on the consensus truth's surface");
         // The hits that move into the table's slab stay occupied there.

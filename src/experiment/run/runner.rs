@@ -418,9 +418,7 @@ pub(crate) fn quickstart_with_profile(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::ground_truth::TOUCH;
-    use crate::geometry::Point3;
-    use crate::mapping::octomap_io::is_occupied;
+    use crate::experiment::run::consensus_truth::hits_placed_by_the_nominal_chain;
     use crate::mapping::octree::DEPTH;
     use std::path::Path;
 
@@ -496,34 +494,8 @@ mod tests {
         let offset = experiment.map_offset(seed);
         let registered = registered_truth(&experiment, &run.truth, 0.01, &offset, &KeyBox::ALL);
         let truth = ground_truth(&experiment, seed);
-        let (mut hits, mut in_registered, mut in_truth) = (0, 0, 0);
-        for (scan, seen) in run.scans.iter().zip(&run.truth.scans) {
-            let map_from_camera = scan.chain.scene_from_camera();
-            for (beam, d) in seen.beams.iter().zip(experiment.scanner().directions()) {
-                if !beam.range.is_finite() {
-                    continue;
-                }
-                let point = map_from_camera * Point3::from(d * beam.range) + offset;
-                // A surface point is inside its cell's solid unless it lies
-                // on a cell face (within TOUCH): those are left out.
-                let cell = (point.coords / 0.01).map(|x| x - x.floor());
-                if cell
-                    .iter()
-                    .any(|&f| f * 0.01 < 2.0 * TOUCH || (1.0 - f) * 0.01 < 2.0 * TOUCH)
-                {
-                    continue;
-                }
-                let value = |tree: &Octree| tree.key(&point).and_then(|k| tree.query(&k, DEPTH));
-                // Cells whose centre the error moves out of the workspace
-                // have no truth.
-                let Some(registered_value) = value(&registered) else {
-                    continue;
-                };
-                hits += 1;
-                in_registered += usize::from(is_occupied(registered_value));
-                in_truth += usize::from(value(&truth).is_some_and(is_occupied));
-            }
-        }
+        let (hits, in_registered, in_truth) =
+            hits_placed_by_the_nominal_chain(&experiment, &run, &offset, (&registered, &truth));
         assert!(hits > 10_000, "{hits} hits");
         assert_eq!(in_registered, hits, "every hit on the registered surface");
         assert!(
