@@ -5,15 +5,14 @@
 use super::{progress_bar, resolution_arg, with_threads, MapArgs};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::KeyBox;
-use crate::experiment::run::consensus_truth::consensus_truth;
 use crate::experiment::run::recorded::{map_recorded, read_scan_graph, RecordedOptions};
-use crate::experiment::run::runner::registered_truth;
+use crate::experiment::run::runner::truth_reference;
 use crate::experiment::{self, write_rays, Experiment, Overrides};
+use crate::mapping::build_map;
 use crate::mapping::method::truth_from_scans;
 use crate::mapping::octomap_io::{check_octree_path, write_octree};
 use crate::mapping::octree::Octree;
 use crate::mapping::settings::{MapProbabilities, MapSettings, OpdfDefaults};
-use crate::mapping::{build_map, Method};
 use crate::sim::profile::ErrorProfile;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -58,14 +57,11 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         write_rays(path, &view, &run.scans, &offset)?;
     }
     let start = Instant::now();
-    let tree = if args.method == Method::RegisteredTruth {
-        registered_truth(&experiment, &run.truth, resolution, &offset, &KeyBox::ALL)
-    } else if args.method == Method::ConsensusTruth {
-        consensus_truth(&experiment, &run.scans, &run.truth, &offset, &KeyBox::ALL)
-    } else {
-        with_threads(args.run.threads, || {
+    let tree = match truth_reference(args.method, &experiment, &run, &offset, &KeyBox::ALL) {
+        Some(tree) => tree,
+        None => with_threads(args.run.threads, || {
             build_map(&view, &run.scans, args.method, resolution, &offset)
-        })??
+        })??,
     };
     let seconds = start.elapsed().as_secs_f64();
     write_octree(&out, &tree, experiment.map().clamp())?;

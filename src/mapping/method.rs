@@ -102,10 +102,9 @@ impl FromStr for Method {
             .into_iter()
             .find(|m| m.as_str() == s)
             .ok_or_else(|| {
-                format!(
-                    "unknown method '{s}' (use blind, jacobian, unscented, correlated, \
-                     ray_update, ray_update_discrete, registered_truth or consensus_truth)"
-                )
+                let names: Vec<&str> = Method::ALL.iter().map(|m| m.as_str()).collect();
+                let (last, rest) = names.split_last().expect("methods");
+                format!("unknown method '{s}' (use {} or {last})", rest.join(", "))
             })
     }
 }

@@ -11,8 +11,7 @@
 
 use super::runner::registered_placement;
 use crate::eval::ground_truth::{voxelise_within, KeyBox};
-use crate::experiment::Experiment;
-use crate::experiment::RunTruth;
+use crate::experiment::{Experiment, RunTruth};
 use crate::geometry::{Isometry3, Vector3};
 use crate::mapping::octree::Octree;
 use crate::mapping::Scan;

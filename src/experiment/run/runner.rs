@@ -68,6 +68,28 @@ pub fn registered_truth(
     voxelise_within(experiment.scene(), resolution, &map_from_scene, region)
 }
 
+/// The scoring reference `method` of `run` ([`Method::is_truth`]) over the
+/// finest cells of `region`: [`registered_truth`] or [`consensus_truth`];
+/// `None` for a method that maps the scans.
+pub fn truth_reference(
+    method: Method,
+    experiment: &Experiment,
+    run: &SimulatedRun,
+    offset: &Vector3,
+    region: &KeyBox,
+) -> Option<Octree> {
+    let resolution = experiment.resolution();
+    match method {
+        Method::RegisteredTruth => Some(registered_truth(
+            experiment, &run.truth, resolution, offset, region,
+        )),
+        Method::ConsensusTruth => Some(consensus_truth(
+            experiment, &run.scans, &run.truth, offset, region,
+        )),
+        _ => None,
+    }
+}
+
 /// The truth a run is scored against, computed over the box of finest
 /// cells that spans its observable mask (the same value on every scored
 /// cell as [`ground_truth`], in time and memory that follow the observed
@@ -229,27 +251,19 @@ impl<'a> SeedRun<'a> {
         })
     }
 
-    /// The map of `method`: sigmap's own builder, the registered truth, or
-    /// an external mapper run on the exported scans.
+    /// The map of `method`: sigmap's own builder, a truth reference, or an
+    /// external mapper run on the exported scans.
     fn map(&self, method: &RunMethod, cell: &str) -> Result<Octree> {
         let experiment = self.experiment;
         let view = experiment.mapper_view();
         match method {
-            RunMethod::Own(Method::RegisteredTruth) => Ok(registered_truth(
-                experiment,
-                &self.run.truth,
-                experiment.resolution(),
-                &self.offset,
-                &self.region,
-            )),
-            RunMethod::Own(Method::ConsensusTruth) => Ok(consensus_truth(
-                experiment,
-                &self.run.scans,
-                &self.run.truth,
-                &self.offset,
-                &self.region,
-            )),
             RunMethod::Own(method) => {
+                let region = &self.region;
+                if let Some(tree) =
+                    truth_reference(*method, experiment, &self.run, &self.offset, region)
+                {
+                    return Ok(tree);
+                }
                 let extras = BuildExtras {
                     measured: Some(&self.measured),
                     done: None,
