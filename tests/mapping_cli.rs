@@ -341,6 +341,52 @@ fn the_truth_references_are_mapped_and_scored_as_run_scores_them() {
     }
 }
 
+/// `sigmap map --method M` of an experiment that pairs against further
+/// references (`also_paired`, as every paper experiment lists the
+/// registered truth) maps M as the experiment without them does, M one of
+/// those references included; a file whose `also_paired` repeats its own
+/// reference is still refused.
+#[test]
+fn a_method_the_experiment_also_pairs_against_is_mapped() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, extra: &str| {
+        let file = dir.path().join(name);
+        let text = portable_quickstart().replace(
+            "seeds = [1, 2, 3]",
+            &format!("seeds = [1]\nreference = \"ray_update\"\n{extra}"),
+        );
+        std::fs::write(&file, text).unwrap();
+        path(&file)
+    };
+    let plain = write("plain.toml", "");
+    let pairing = write(
+        "pairing.toml",
+        "also_paired = [\"registered_truth\", \"unscented\"]",
+    );
+    for method in ["registered_truth", "unscented", "blind"] {
+        let map = |experiment: &str, name: &str| {
+            let out = path(&dir.path().join(format!("{name}_{method}.ot")));
+            let args = ["map", experiment, "--method", method, "--seed", "1", "-q"];
+            sigmap_ok(&[&args[..], &["--resolution", "0.02", "--out", &out]].concat());
+            std::fs::read(out).unwrap()
+        };
+        assert!(
+            map(&pairing, "pairing") == map(&plain, "plain"),
+            "{method}: the same map"
+        );
+    }
+    let repeats = write("repeats.toml", "also_paired = [\"ray_update\"]");
+    let out = path(&dir.path().join("x.ot"));
+    let refused = sigmap(&["map", &repeats, "--method", "ray_update", "--out", &out]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("repeats.toml")
+            && stderr.contains("also_paired lists ray_update, which is already the reference"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn score_against_a_scene_with_recorded_scans() {
     // The quickstart's first run exported as recorded scans, sigmap's ray

@@ -94,11 +94,13 @@ fn referred(path: &Path, key: &str, value: &Path) -> Result<PathBuf> {
 }
 
 /// The further references of `also_paired = [..]`: each one of `methods`,
-/// not the reference, none twice. With the methods overridden (`sigmap map
-/// --method`) those no longer among them are dropped.
+/// not the file's reference, none twice. With the methods overridden
+/// (`sigmap map --method`) those no longer among them are dropped, and so
+/// is the one the override made the reference (the file's reference is gone,
+/// and the one method left is paired with nothing).
 fn also_paired(
     names: &[String],
-    reference: &RunMethod,
+    (named, reference): (Option<&str>, &RunMethod),
     methods: &[RunMethod],
     overrides: &Overrides,
 ) -> std::result::Result<Vec<RunMethod>, String> {
@@ -107,10 +109,14 @@ fn also_paired(
     }
     let mut out = Vec::new();
     for name in names {
-        if name == reference.as_str() {
+        let overridden = overrides.methods.is_some();
+        if Some(name.as_str()) == named || (!overridden && name == reference.as_str()) {
             return Err(format!(
                 "also_paired lists {name}, which is already the reference"
             ));
+        }
+        if name == reference.as_str() {
+            continue;
         }
         match methods.iter().find(|m| m.as_str() == name) {
             Some(method) => out.push(method.clone()),
@@ -400,8 +406,13 @@ impl Experiment {
             overrides.methods.is_none() || methods.iter().any(|m| m.as_str() == *name)
         });
         let reference = reference_method(named, &methods).map_err(&bad)?;
-        let also_paired =
-            also_paired(&file.also_paired, &reference, &methods, overrides).map_err(&bad)?;
+        let also_paired = also_paired(
+            &file.also_paired,
+            (file.reference.as_deref(), &reference),
+            &methods,
+            overrides,
+        )
+        .map_err(&bad)?;
         let mut experiment = Self {
             name: file.name.unwrap_or_else(|| crate::files::stem(path)),
             description: file.description,
