@@ -196,6 +196,33 @@ fn bad_chain_files_exit_2() {
             CHAIN.replace("inverse = true", "invert = true"),
             "malformed TOML",
         ),
+        // Absurd magnitudes are refused before they become inf or NaN.
+        (
+            "far.toml",
+            CHAIN.replace("xyz = [0.6, 0.1, 0.5]", "xyz = [1e308, 0.1, 0.5]"),
+            "'world_from_robot': xyz has 1e308 m, farther than 1e7 m",
+        ),
+        (
+            "far_point.toml",
+            CHAIN.replace("xyz = [0.0, 0.1, 1.2]", "xyz = [0.0, 0.1, 2e7]"),
+            "[point] xyz has 2e7 m",
+        ),
+        (
+            "wide.toml",
+            CHAIN.replace(
+                "sigma = [0.001, 0.001, 0.001, 0.002, 0.002, 0.002]\n[point]",
+                "sigma = [0.001, 0.001, 0.001, 0.002, 0.6, 0.002]\n[point]",
+            ),
+            "'robot_from_camera': sigma[4] = 6e-1 exceeds 0.5 rad",
+        ),
+        (
+            "wide_point.toml",
+            CHAIN.replace(
+                "sigma = [0.0005, 0.0005, 0.0005]",
+                "sigma = [0.0005, 1e200, 0.0005]",
+            ),
+            "[point]: sigma[1] = inf exceeds 1 m",
+        ),
     ] {
         let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();
@@ -209,6 +236,12 @@ fn bad_chain_files_exit_2() {
     }
     let out = sigmap(&["propagate", "nope.toml", "--point", "1,2"]);
     assert_eq!(out.status.code(), Some(2));
+    let chain = dir.path().join("chain.toml");
+    std::fs::write(&chain, CHAIN).unwrap();
+    let out = sigmap(&["propagate", chain.to_str().unwrap(), "--point", "0,0,1e8"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--point xyz has 1e8 m"), "{stderr}");
     // An experiment file given where the chain file goes is named as one.
     let quickstart = common::root().join("experiments/quickstart.toml");
     let out = sigmap(&["propagate", quickstart.to_str().unwrap()]);

@@ -3,6 +3,7 @@
 use super::PropagateArgs;
 use crate::error::{Error, Result};
 use crate::experiment::charts::figures::write_propagation_sweep;
+use crate::uncertainty::chain::check_reach;
 use crate::uncertainty::compare::{compare, log_space, sweep, MethodResult};
 use crate::uncertainty::{read_chain_file, SigmaSet, UncertainPoint};
 use std::path::PathBuf;
@@ -14,6 +15,9 @@ const MAX_SAMPLES: usize = 100_000_000;
 /// `sigmap propagate`.
 pub(crate) fn run(args: PropagateArgs) -> Result<()> {
     let (chain, file_point) = read_chain_file(&args.chain)?;
+    if let Some(xyz) = &args.point {
+        check_reach(xyz, "--point").map_err(Error::Usage)?;
+    }
     let point = match (args.point, file_point) {
         (Some(xyz), Some(p)) => UncertainPoint {
             mean: xyz.into(),

@@ -3,8 +3,7 @@
 
 use crate::error::{read_toml_with, Error, Result};
 use crate::geometry::Matrix6;
-use crate::uncertainty::CovarianceSpec;
-use crate::uncertainty::RangeModel;
+use crate::uncertainty::{check_pose_sigmas, CovarianceSpec, RangeModel, MAX_POSE_SIGMA};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -145,29 +144,22 @@ impl ErrorProfile {
     /// model and the statistics handle: translations up to 1 m, angles up to
     /// 0.5 rad (standard deviations). `what` says where the values came from.
     pub fn check_pose_magnitudes(&self, what: &str) -> std::result::Result<(), String> {
-        let pose = |name: &str, c: &Matrix6| -> std::result::Result<(), String> {
-            for i in 0..6 {
-                let (sigma, limit) = (c[(i, i)].sqrt(), if i < 3 { 1.0 } else { 0.5 });
-                if sigma.is_nan() || sigma > limit {
-                    return Err(format!(
-                        "{what}: [{name}] sigma[{i}] = {sigma:e} exceeds {limit} {}",
-                        if i < 3 { "m" } else { "rad" }
-                    ));
-                }
-            }
-            Ok(())
+        let pose = |name: &str, c: &Matrix6| {
+            check_pose_sigmas(c).map_err(|e| format!("{what}: [{name}] {e}"))
         };
         pose("world_from_scene", &self.world_from_scene)?;
         pose("robot_from_camera", &self.robot_from_camera)?;
         match &self.arm {
             ArmError::Pose(c) => pose("world_from_robot", c),
-            ArmError::Joints(s) => match s.iter().position(|v| v.is_nan() || *v > 0.5) {
-                Some(i) => Err(format!(
-                    "{what}: [world_from_robot] joint_sigma[{i}] = {:e} exceeds 0.5 rad",
-                    s[i]
-                )),
-                None => Ok(()),
-            },
+            ArmError::Joints(s) => {
+                match s.iter().position(|v| v.is_nan() || *v > MAX_POSE_SIGMA[1]) {
+                    Some(i) => Err(format!(
+                        "{what}: [world_from_robot] joint_sigma[{i}] = {:e} exceeds {} rad",
+                        s[i], MAX_POSE_SIGMA[1]
+                    )),
+                    None => Ok(()),
+                }
+            }
         }
     }
 }

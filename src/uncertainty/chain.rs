@@ -1,7 +1,7 @@
 //! The uncertain transform chain `X_out = T_1 · T_2 ··· T_k · X` (docs/math.md §1.2),
 //! any link of which may be inverted, applied to an uncertain point.
 
-use super::{CovarianceSpec, UncertainPose};
+use super::{check_pose_sigmas, CovarianceSpec, UncertainPose};
 use crate::error::{check_input_file, read_text, read_toml, Error, Result, MAX_TOML_BYTES};
 use crate::geometry::{Isometry3, Matrix3, Pose, Vector3};
 use serde::Deserialize;
@@ -157,8 +157,34 @@ fn is_experiment(path: &Path) -> bool {
     })
 }
 
+/// The farthest a chain file's translation or point may lie from its frame's
+/// origin (m): 10 000 km, so that a world frame on the Earth (UTM
+/// coordinates, say) is taken and `1e308` is not.
+pub const MAX_CHAIN_REACH: f64 = 1e7;
+
+/// The largest standard deviation of a chain file's point (m), as of a
+/// profile's range noise.
+const MAX_POINT_SIGMA: f64 = 1.0;
+
+/// Whether `xyz` is finite and within [`MAX_CHAIN_REACH`] on every axis; the
+/// error names `what` and the limit.
+pub fn check_reach(xyz: &[f64; 3], what: &str) -> std::result::Result<(), String> {
+    match xyz
+        .iter()
+        .find(|v| !v.is_finite() || v.abs() > MAX_CHAIN_REACH)
+    {
+        Some(v) if !v.is_finite() => Err(format!("{what} xyz must be finite, found {v}")),
+        Some(v) => Err(format!(
+            "{what} xyz has {v:e} m, farther than {MAX_CHAIN_REACH:e} m from the origin"
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Reads a chain file (the `sigmap propagate` format, see docs/cli.md): the chain
-/// and, if the file has a `[point]`, the measurement.
+/// and, if the file has a `[point]`, the measurement. Translations and the
+/// point lie within [`MAX_CHAIN_REACH`]; each link's standard deviations are
+/// at most [`MAX_POSE_SIGMA`](super::MAX_POSE_SIGMA), the point's at most 1 m.
 pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainPoint>)> {
     let bad = |msg: String| Error::input(path, msg);
     let file: ChainFile = read_toml(path).map_err(|e| {
@@ -178,15 +204,16 @@ pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainP
     let mut links = Vec::with_capacity(file.transforms.len());
     for (i, t) in file.transforms.iter().enumerate() {
         let name = t.name.clone().unwrap_or_else(|| format!("transform {i}"));
+        let what = format!("[[transform]] '{name}'");
         let mean = Pose::new(t.xyz, t.rpy);
         if !mean.is_finite() {
-            return Err(bad(format!(
-                "[[transform]] '{name}': xyz/rpy must be finite"
-            )));
+            return Err(bad(format!("{what}: xyz/rpy must be finite")));
         }
+        check_reach(&t.xyz, &format!("{what}:")).map_err(bad)?;
         let covariance = spec(t.sigma.as_ref(), t.covariance.as_ref())
-            .to_matrix::<6>(&format!("[[transform]] '{name}'"))
+            .to_matrix::<6>(&what)
             .map_err(bad)?;
+        check_pose_sigmas(&covariance).map_err(|e| bad(format!("{what}: {e}")))?;
         links.push(ChainLink {
             name,
             pose: UncertainPose { mean, covariance },
@@ -196,14 +223,20 @@ pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainP
     let point = match file.point {
         None => None,
         Some(p) => {
-            if !p.xyz.iter().all(|v| v.is_finite()) {
-                return Err(bad("[point] xyz must be finite".into()));
+            check_reach(&p.xyz, "[point]").map_err(bad)?;
+            let covariance = spec(p.sigma.as_ref(), p.covariance.as_ref())
+                .to_matrix::<3>("[point]")
+                .map_err(bad)?;
+            if let Some(i) = (0..3).find(|&i| covariance[(i, i)].max(0.0).sqrt() > MAX_POINT_SIGMA)
+            {
+                return Err(bad(format!(
+                    "[point]: sigma[{i}] = {:e} exceeds {MAX_POINT_SIGMA} m",
+                    covariance[(i, i)].sqrt()
+                )));
             }
             Some(UncertainPoint {
                 mean: Vector3::from(p.xyz),
-                covariance: spec(p.sigma.as_ref(), p.covariance.as_ref())
-                    .to_matrix::<3>("[point]")
-                    .map_err(bad)?,
+                covariance,
             })
         }
     };

@@ -87,6 +87,28 @@ pub fn check_covariance<const N: usize>(m: &SMatrix<f64, N, N>) -> Result<(), St
     Ok(())
 }
 
+/// The largest pose standard deviations sigmap takes: 1 m along each
+/// translation axis, 0.5 rad about each rotation axis (far past any arm,
+/// calibration or registration, and where a first-order chain still means
+/// something).
+pub const MAX_POSE_SIGMA: [f64; 2] = [1.0, 0.5];
+
+/// Checks each standard deviation of a pose covariance (x, y, z, then the
+/// three rotations) against [`MAX_POSE_SIGMA`]: the first one above it, as
+/// `sigma[i] = … exceeds 1 m`.
+pub fn check_pose_sigmas(covariance: &SMatrix<f64, 6, 6>) -> Result<(), String> {
+    for i in 0..6 {
+        let (sigma, limit, unit) = match i {
+            0..3 => (covariance[(i, i)].sqrt(), MAX_POSE_SIGMA[0], "m"),
+            _ => (covariance[(i, i)].sqrt(), MAX_POSE_SIGMA[1], "rad"),
+        };
+        if sigma.is_nan() || sigma > limit {
+            return Err(format!("sigma[{i}] = {sigma:e} exceeds {limit} {unit}"));
+        }
+    }
+    Ok(())
+}
+
 /// `N` independent standard normal draws: the one sampler of the truth draw
 /// and the Monte Carlo reference, so both perturb parameters alike.
 pub fn standard_normal<const N: usize>(rng: &mut impl Rng) -> SVector<f64, N> {

@@ -34,7 +34,10 @@ pub mod unscented;
 
 pub use blind::BlindPropagator;
 pub use chain::{read_chain_file, ChainLink, Gaussian3, UncertainChain, UncertainPoint};
-pub use covariance::{check_covariance, sqrt_factor, standard_normal, CovarianceSpec};
+pub use covariance::{
+    check_covariance, check_pose_sigmas, sqrt_factor, standard_normal, CovarianceSpec,
+    MAX_POSE_SIGMA,
+};
 pub use jacobian::JacobianPropagator;
 pub use monte_carlo::MonteCarloPropagator;
 pub use range::RangeModel;
