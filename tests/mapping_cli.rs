@@ -463,6 +463,16 @@ fn score_against_a_scene_with_recorded_scans() {
     for (args, says) in [
         (vec!["--scene-pose", "1,2,3"], "six finite numbers"),
         (vec!["--max-range", "-1"], "--max-range -1"),
+        // A scene placed where no ray goes, or rays cut shorter than a
+        // cell: every score would be 0/0.
+        (
+            vec!["--scene-pose", "5,0,0,0,0,0"],
+            "tabletop.toml: none of the",
+        ),
+        (
+            vec!["--max-range", "1e-9"],
+            "cells the recorded rays cross (cut at --max-range 0.000000001) lies",
+        ),
     ] {
         let out = sigmap(
             &[

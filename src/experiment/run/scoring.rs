@@ -175,7 +175,26 @@ pub fn score_against_scene(
         name,
         list_wrong,
     };
-    Ok(row_of(map, &truth, &observable, whose))
+    let scored = row_of(map, &truth, &observable, whose);
+    if scored.row.get("observable_cells") == 0.0 {
+        // Every score would be 0/0: the rays and the scene do not meet.
+        let message = if observable.is_empty() {
+            "the recorded rays cross no cell (are they cut at a --max-range shorter than a \
+             cell?): nothing to score"
+                .to_string()
+        } else {
+            let cut = max_range.map_or(String::new(), |m| format!(" (cut at --max-range {m})"));
+            format!(
+                "none of the {} cells the recorded rays cross{cut} lies in the scene's \
+                 workspace where --scene-pose puts it (default: at the map frame's origin): \
+                 nothing to score; check the scene's pose in the map frame and that the scans \
+                 are in it",
+                observable.len()
+            )
+        };
+        return Err(Error::input(&scene.source, message));
+    }
+    Ok(scored)
 }
 
 #[cfg(test)]
