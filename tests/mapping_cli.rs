@@ -189,6 +189,28 @@ fn opdf_figures_are_drawn() {
             at(0.6)
         );
     }
+    // A thickness that is no voxel edge, or a surface no map reaches, is
+    // one line and exit 2 (before: a CSV of inf and NaN).
+    for (args, says) in [
+        (
+            ["--range", "1e308"],
+            "range 1e308 m lies outside any map of 0.01 m voxels",
+        ),
+        (["--thickness", "1e-300"], "thickness of 1e-300 m"),
+        (["--range", "nan"], "range NaN m"),
+    ] {
+        let out = sigmap(
+            &[
+                &["opdf"][..],
+                &args,
+                &["--out", &path(&dir.path().join("x"))],
+            ]
+            .concat(),
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(says), "{stderr}");
+    }
 }
 
 #[test]

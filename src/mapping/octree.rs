@@ -24,7 +24,7 @@ mod log_odds;
 mod pool;
 mod update;
 pub use key::Key;
-pub use limits::{check_span, RESOLUTIONS};
+pub use limits::{check_span, span, RESOLUTIONS};
 pub use log_odds::{logodds, Clamp, LOG_ODDS_HIT, LOG_ODDS_MISS};
 use pool::{max_known, Parent, ParentSlot, Pool};
 

@@ -5,6 +5,7 @@
 use crate::error::{Error, Result};
 use crate::experiment::charts::{panels, Panel, Series};
 use crate::files::write_folder;
+use crate::mapping::octree::{check_span, span, RESOLUTIONS};
 use crate::mapping::opdf::OpdfParams;
 use crate::uncertainty::compare::SweepRow;
 use std::fmt::Write as _;
@@ -14,12 +15,24 @@ use std::path::Path;
 /// `opdf_fig6.svg` (σ = Δ, origin σ_o from 0 to 10Δ) into the folder `out`
 /// for a surface of thickness `delta` at range `r` (staged, then renamed).
 pub fn write_opdf_figures(out: &Path, delta: f64, r: f64) -> Result<()> {
-    if !(delta.is_finite() && delta > 0.0 && r.is_finite() && r > 10.0 * delta) {
+    // Lengths as given, or in exponent form where they are absurd.
+    let shown = |x: f64| match x.abs() {
+        a if (1e-6..1e6).contains(&a) => format!("{x}"),
+        _ => format!("{x:e}"),
+    };
+    let (delta_m, r_m) = (shown(delta), shown(r));
+    if !(RESOLUTIONS.contains(&delta) && r.is_finite() && r > 10.0 * delta) {
         return Err(Error::Usage(format!(
-            "a surface thickness of {delta} m at range {r} m: the thickness must be positive \
-             and the range more than ten thicknesses"
+            "a surface thickness of {delta_m} m at range {r_m} m: the thickness is a voxel edge \
+             (0.001 to 1 m) and the range more than ten thicknesses"
         )));
     }
+    check_span(r, delta).map_err(|_| {
+        Error::Usage(format!(
+            "a surface at range {r_m} m lies outside any map of {delta_m} m voxels (±{} m)",
+            span(delta)
+        ))
+    })?;
     let params = OpdfParams::new(delta);
     let lambdas: Vec<f64> = (0..=2000)
         .map(|i| -0.1 * r + i as f64 * (1.3 * r) / 2000.0)

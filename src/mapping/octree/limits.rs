@@ -7,14 +7,20 @@ use super::CENTER;
 /// plus one cell of grid offset, fit in a tree of this resolution (±32768
 /// cells around the origin).
 pub fn check_span(reach: f64, resolution: f64) -> Result<(), String> {
-    if reach.is_finite() && reach + resolution < (CENTER - 1) as f64 * resolution {
+    if reach.is_finite() && reach + resolution < span(resolution) {
         return Ok(());
     }
     Err(format!(
         "the workspace reaches {reach} m from the scene origin; at resolution {resolution} m \
          the map spans only ±{} m (use a coarser resolution or a smaller workspace)",
-        (CENTER - 1) as f64 * resolution
+        span(resolution)
     ))
+}
+
+/// How far a tree of this resolution reaches from the origin on each axis
+/// (m): 32 767 cells.
+pub fn span(resolution: f64) -> f64 {
+    (CENTER - 1) as f64 * resolution
 }
 
 /// The finest voxel edges sigmap maps at (m).
