@@ -108,7 +108,10 @@ fn absurd_rasters_ranges_and_sigma_sets_are_refused_before_any_work() {
     );
     // A sigma-point set the scaled transform is not defined for.
     for (table, says) in [
-        ("alpha = 0.0", "[unscented] alpha = 0 must be above 0"),
+        (
+            "alpha = 0.0",
+            "[unscented] alpha = 0 must be at least 0.0001",
+        ),
         (
             "alpha = 0.5\nbeta = -1.0",
             "[unscented] beta = -1 must be at least 0",

@@ -306,5 +306,8 @@ fn the_scaled_sigma_point_set_is_offered_on_the_command_line() {
     }
     let out = sigmap(&["propagate", p, "--alpha", "0"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("--alpha = 0 must be above 0"), "{stderr}");
+    assert!(
+        stderr.contains("--alpha = 0 must be at least 0.0001"),
+        "{stderr}"
+    );
 }

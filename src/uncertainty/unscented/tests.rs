@@ -78,6 +78,22 @@ fn exact_when_the_chain_is_linear_in_its_uncertain_parameters() {
     assert!((scaled.covariance - lin.covariance).norm() <= 1e-8 * lin.covariance.norm());
 }
 
+/// The smallest α the scaled set takes still gives the linear chain's
+/// covariance (at α = 10⁻⁷, past the bound, its weights have cancelled:
+/// the covariance is off by a tenth); a smaller α is refused.
+#[test]
+fn the_smallest_alpha_taken_is_still_exact_on_a_linear_chain() {
+    let chain = paper_chain(0.002, 0.0);
+    let lin = jacobian_naive(&chain, &point());
+    let set = SigmaSet::scaled(1e-4, 2.0, 0.0).unwrap();
+    let ut = UnscentedPropagator::new(&chain, set).propagate(&point());
+    let error = (ut.covariance - lin.covariance).norm() / lin.covariance.norm();
+    assert!(error <= 1e-6, "relative error {error:e}");
+    for alpha in [9.9e-5, 0.0, f64::NAN, 10.5] {
+        assert!(SigmaSet::scaled(alpha, 2.0, 0.0).is_err(), "alpha {alpha}");
+    }
+}
+
 #[test]
 fn forty_two_points_or_thirty_when_the_scene_frame_is_exact() {
     let chain = paper_chain(0.001, 0.002);
