@@ -13,8 +13,8 @@ use super::pipeline::prepare_and_insert;
 use super::pooling::{Pooled, Pooling};
 use super::ray_update::{DiscreteScan, RayUpdater};
 use super::scan::{
-    check_clearing, check_sample_budget, BeamGrid, BeamLayout, BeamStatus, Layouts, MapperView,
-    Scan,
+    check_clearing, check_cloud_clearing, check_sample_budget, BeamGrid, BeamLayout, BeamStatus,
+    Layouts, MapperView, Scan,
 };
 use super::shared_motion::expect_over_shared_motion;
 use super::spherical::{BeamEnd, GridBuffers, GridLayout, LocalGrid, NominalBins};
@@ -95,7 +95,7 @@ pub fn build_map_with(
     resolution: f64,
     offset: &Vector3,
 ) -> Result<Octree> {
-    check_method(view, scans.len(), method, resolution)?;
+    check_method(view, scans, method, resolution)?;
     let tree = if method.casts_rays() {
         let discrete = method == Method::RayUpdateDiscrete;
         ray_update_map(view, scans, extras, (resolution, discrete), offset)?
@@ -114,7 +114,7 @@ pub fn build_map_with(
 
 /// Refuses what `method` cannot build from scans laid out as `view` says,
 /// before anything is built.
-fn check_method(view: &MapperView, scans: usize, method: Method, resolution: f64) -> Result<()> {
+fn check_method(view: &MapperView, scans: &[Scan], method: Method, resolution: f64) -> Result<()> {
     if method.is_truth() {
         return Err(Error::Usage(truth_from_scans(method)));
     }
@@ -123,12 +123,15 @@ fn check_method(view: &MapperView, scans: usize, method: Method, resolution: f64
     }
     let layouts: &[BeamLayout] = match view.layouts {
         Layouts::Shared(layout) => std::slice::from_ref(layout),
-        Layouts::PerScan(layouts) => &layouts[..scans.min(layouts.len())],
+        Layouts::PerScan(layouts) => &layouts[..scans.len().min(layouts.len())],
     };
-    for layout in layouts {
-        if let Some(half_angles) = layout.half_angles {
-            check_clearing(half_angles, view.max_range, resolution)
-                .map_err(|e| Error::Usage(format!("method {method}: {e}")))?;
+    for (i, layout) in layouts.iter().enumerate() {
+        match layout.half_angles {
+            Some(half_angles) => check_clearing(half_angles, view.max_range, resolution)
+                .map_err(|e| Error::Usage(format!("method {method}: {e}")))?,
+            // A recorded cloud (one layout per scan): its own reach.
+            None => check_cloud_clearing(layout, &scans[i], view.max_range, resolution)
+                .map_err(|e| Error::Usage(format!("method {method}, scan {i}: {e}")))?,
         }
         if view.settings.interpolate_beams {
             for grid in &layout.grids {

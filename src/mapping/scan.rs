@@ -175,6 +175,15 @@ impl BeamGrid {
     pub fn bins(&self) -> f64 {
         self.azimuth.count as f64 * self.elevation.count as f64
     }
+
+    /// The half-angles (rad) of its outermost azimuth and elevation bin
+    /// edges from the grid's boresight: the pyramid its beams stay in.
+    pub fn half_angles(&self) -> [f64; 2] {
+        [&self.azimuth, &self.elevation].map(|axis| {
+            let end = axis.start + axis.step * axis.count as f64;
+            axis.start.abs().max(end.abs())
+        })
+    }
 }
 
 /// The beam layouts of a set of scans: one shared by every scan (a
@@ -261,6 +270,49 @@ pub fn check_clearing(
          all miss clears space bounded by {cells:.2e} cells, which the uncertainty-aware \
          methods evaluate one by one; sigmap handles at most \
          {MAX_CLEARED_BOUNDARY_CELLS:.0e} (lower max_range or use a coarser resolution)"
+    ))
+}
+
+/// Checks that the uncertainty-aware methods can map a recorded cloud's
+/// `scan` laid out as `layout` at `resolution`: the space it clears reaches
+/// its farthest hit, or `max_range` where a point beyond it is a beam that
+/// returned nothing, and the boundary of each grid's pyramid out to there
+/// ([`cleared_boundary_cells`]) holds at most [`MAX_CLEARED_BOUNDARY_CELLS`]
+/// cells in all. A point far outside the scene (a corrupt value, a
+/// reflection) would otherwise make one scan's merge take gigabytes.
+pub fn check_cloud_clearing(
+    layout: &BeamLayout,
+    scan: &Scan,
+    max_range: f64,
+    resolution: f64,
+) -> Result<(), String> {
+    let reach = scan
+        .measurements
+        .iter()
+        .filter_map(|m| match m.status {
+            BeamStatus::Hit => Some(m.range),
+            BeamStatus::NoReturn => Some(max_range),
+            _ => None,
+        })
+        .fold(0.0, f64::max);
+    let cells: f64 = layout
+        .grids
+        .iter()
+        .map(|grid| cleared_boundary_cells(grid.half_angles(), reach, resolution))
+        .sum();
+    if cells <= MAX_CLEARED_BOUNDARY_CELLS {
+        return Ok(());
+    }
+    let reach = if reach < 1e6 {
+        format!("{reach:.2}")
+    } else {
+        format!("{reach:.2e}")
+    };
+    Err(format!(
+        "its beams reach {reach} m at resolution {resolution} m: the space they clear is \
+         bounded by {cells:.2e} cells, which the uncertainty-aware methods evaluate one by one; \
+         sigmap handles at most {MAX_CLEARED_BOUNDARY_CELLS:.0e} (give a --max-range beyond \
+         which points are beams that returned nothing, or use a coarser resolution)"
     ))
 }
 

@@ -274,3 +274,42 @@ fn recorded_scans_refuse_an_absurd_profile() {
         "{err}"
     );
 }
+
+/// One point of a recorded cloud far outside any scene (a corrupt value)
+/// would make the uncertainty-aware merge of its scan take gigabytes: the
+/// map is refused before it is built, naming the scan and the reach. With a
+/// `--max-range` that point is a beam that returned nothing and the map is
+/// made; the ray update maps it as it is.
+#[test]
+fn a_cloud_reaching_far_past_its_scene_is_refused_before_the_merge() {
+    let profile = ErrorProfile::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/profiles/collaborative_poses.toml"
+    )))
+    .unwrap();
+    let mut points = raster(0.5, 24, 16, |_| true);
+    points[40] = Point3::from(points[40].coords.normalize() * 1e100);
+    let nodes = [ScanNode {
+        id: 7,
+        map_from_sensor: crate::geometry::Isometry3::identity(),
+        points,
+    }];
+    let map = |method, max_range| {
+        let options = RecordedOptions {
+            method,
+            resolution: 0.02,
+            max_range,
+            angular_step: None,
+        };
+        map_recorded(&nodes, &profile, &MapSettings::default(), &options, |_| {})
+    };
+    let err = map(Method::Unscented, None)
+        .expect_err("refused")
+        .to_string();
+    assert!(
+        err.contains("method unscented, scan 0: its beams reach 1.00e100 m"),
+        "{err}"
+    );
+    assert!(map(Method::Unscented, Some(3.0)).is_ok());
+    assert!(map(Method::RayUpdate, None).is_ok());
+}
