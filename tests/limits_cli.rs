@@ -389,6 +389,26 @@ fn bad_files_are_named_in_one_line() {
             "zero.obj",
             "not a regular file",
         );
+        // A map or a scan graph that is a device is refused, not read
+        // until memory runs out (before: `score /dev/zero` read forever).
+        let quickstart = root().join("experiments/quickstart.toml");
+        refused(
+            &["score", "/dev/zero", quickstart.to_str().unwrap()],
+            "/dev/zero: the map (first argument)",
+            "not a regular file",
+        );
+        let profile = root().join("experiments/profiles/collaborative_poses.toml");
+        let out = d.join("x.ot");
+        let scans = [
+            "map",
+            "--scans",
+            "/dev/zero",
+            "--profile",
+            profile.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        refused(&scans, "/dev/zero", "not a regular file");
     }
     // URDFs: a cycle, and a revolute joint without limits.
     let urdf = std::fs::read_to_string(root().join("robots/ur5.urdf")).unwrap();

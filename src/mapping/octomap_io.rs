@@ -4,7 +4,7 @@
 //! colours are passed over); files are written as `OcTree`.
 
 use super::octree::{Clamp, NodeId, Octree, DEPTH};
-use crate::error::{Error, Result};
+use crate::error::{check_input_file, Error, Result};
 use std::io::{BufRead, Read};
 use std::path::Path;
 
@@ -195,9 +195,16 @@ pub fn write_octree(path: &Path, tree: &Octree, clamp: Clamp) -> Result<()> {
     crate::files::write_file(path, &bytes)
 }
 
-/// Reads a `.ot` or `.bt` file (by its first line). `.bt` leaves take the
+/// Most bytes of a map file sigmap reads (8 GiB: a tree of about that size
+/// in memory, past the 6 GiB a map may take while it is built).
+pub const MAX_MAP_FILE_BYTES: u64 = 8 << 30;
+
+/// Reads a `.ot` or `.bt` file (by its first line): a regular file of at
+/// most [`MAX_MAP_FILE_BYTES`], so that a device or a pipe is refused, not
+/// read forever. `.bt` leaves take the
 /// clamp bounds, as OctoMap's reader gives them.
 pub fn read_octree(path: &Path, clamp: Clamp) -> Result<Octree> {
+    check_input_file(path, MAX_MAP_FILE_BYTES)?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     parse(&bytes, clamp).map_err(|e| Error::input(path, e))
 }

@@ -55,9 +55,13 @@ pub const MAX_GRAPH_BYTES: u64 = 8 << 30;
 /// Reads and checks a ScanGraph file: every problem (missing, too large,
 /// truncated, wrong counts, NaN, no scans) is an error naming the file.
 pub fn read_scan_graph(path: &Path) -> Result<Vec<ScanNode>> {
-    let size = std::fs::metadata(path)
-        .map_err(|e| Error::input(path, format!("cannot read the scan graph: {e}")))?
-        .len();
+    let meta = std::fs::metadata(path)
+        .map_err(|e| Error::input(path, format!("cannot read the scan graph: {e}")))?;
+    if !meta.is_file() {
+        // A device or a pipe would be read forever.
+        return Err(Error::input(path, "is not a regular file"));
+    }
+    let size = meta.len();
     if size > MAX_GRAPH_BYTES {
         return Err(Error::input(
             path,
