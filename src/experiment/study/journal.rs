@@ -61,16 +61,16 @@ impl Inputs {
 /// scripts, and sigmap's version. Fails when a mapper's program is missing.
 pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
     let mut hash = Sha256::new();
-    let mut field = |bytes: &[u8]| {
-        // Each field framed by its length: no two inputs hash alike by
-        // moving bytes from one field to the next.
+    // Each field framed by its length: no two inputs hash alike by moving
+    // bytes from one field to the next.
+    let field = |hash: &mut Sha256, bytes: &[u8]| {
         hash.update((bytes.len() as u64).to_le_bytes());
         hash.update(bytes);
     };
-    field(env!("CARGO_PKG_VERSION").as_bytes());
+    field(&mut hash, env!("CARGO_PKG_VERSION").as_bytes());
     let mut files: Vec<(String, String)> = Vec::new();
     for cell in cells {
-        field(Experiment::cell_label(cell.cell()).as_bytes());
+        field(&mut hash, Experiment::cell_label(cell.cell()).as_bytes());
         let mut paths: Vec<PathBuf> = [cell.source(), &cell.profile().source, &cell.robot().source]
             .into_iter()
             .chain(cell.scene().inputs.iter().map(PathBuf::as_path))
@@ -84,12 +84,11 @@ pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
             }
         }
         for path in &paths {
-            let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
             // Content only: the same files named from another folder match.
             let name = path.to_string_lossy().into_owned();
-            field(&bytes);
+            let digest = hash_file(path, &mut hash)?;
             if !files.iter().any(|(p, _)| *p == name) {
-                files.push((name, hex(&Sha256::digest(&bytes))));
+                files.push((name, hex(&digest)));
             }
         }
     }
@@ -97,6 +96,33 @@ pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
         fingerprint: format!("{FINGERPRINT_SCHEME}{}", hex(&hash.finalize())),
         files,
     })
+}
+
+/// Feeds the file at `path` to `hash` as a field (its length, then its
+/// bytes, as `fingerprint` frames every field) and returns its own SHA-256, reading it in blocks: a mapper's
+/// program or a model file it names may be larger than memory.
+fn hash_file(path: &Path, hash: &mut Sha256) -> Result<Vec<u8>> {
+    use std::io::Read as _;
+    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let length = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    hash.update(length.to_le_bytes());
+    let (mut own, mut read, mut block) = (Sha256::new(), 0u64, vec![0u8; 1 << 16]);
+    loop {
+        let n = file.read(&mut block).map_err(|e| Error::io(path, e))?;
+        if n == 0 {
+            break;
+        }
+        hash.update(&block[..n]);
+        own.update(&block[..n]);
+        read += n as u64;
+    }
+    if read != length {
+        return Err(Error::input(
+            path,
+            format!("changed while it was read ({length} bytes, then {read}); run again"),
+        ));
+    }
+    Ok(own.finalize().to_vec())
 }
 
 /// Lower-case hex of a digest.
@@ -253,6 +279,26 @@ fn parse_record(record: &[u8], end: &[u8]) -> Option<(Vec<RunRow>, Vec<TimingRow
 mod tests {
     use super::*;
     use crate::mapping::Method;
+
+    /// A file read in blocks hashes as the whole file did (its length, then
+    /// its bytes, in the fingerprint; its own digest beside), so results
+    /// folders fingerprinted before stay valid: several blocks and a part.
+    #[test]
+    fn a_file_hashed_in_blocks_hashes_as_the_whole_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("model.bin");
+        let bytes: Vec<u8> = (0..200_003u32)
+            .map(|i: u32| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+            .collect();
+        std::fs::write(&path, &bytes).unwrap();
+        let mut streamed = Sha256::new();
+        let digest = hash_file(&path, &mut streamed).unwrap();
+        let mut whole = Sha256::new();
+        whole.update((bytes.len() as u64).to_le_bytes());
+        whole.update(&bytes);
+        assert_eq!(streamed.finalize(), whole.finalize());
+        assert_eq!(digest, Sha256::digest(&bytes).to_vec());
+    }
 
     fn row(seed: u64, method: &str, f1: f64) -> RunRow {
         let mut r: RunRow = csv::ReaderBuilder::new()
