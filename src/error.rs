@@ -127,6 +127,16 @@ pub fn check_input_file(path: &Path, max_bytes: u64) -> Result<()> {
     Ok(())
 }
 
+/// A length (m) for a message: as given, or in exponent form where it is
+/// absurd (`1e100`, not a hundred digits).
+pub fn metres(x: f64) -> String {
+    if (1e-6..1e6).contains(&x.abs()) || x == 0.0 {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// Most bytes of a text input (URDF, CSV).
 pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 

@@ -7,6 +7,7 @@
 use super::spherical::Axis;
 use super::viewpoint::{raster_axes, Raster, CAMERA_FROM_GRID};
 use super::MapSettings;
+use crate::error::metres;
 use crate::geometry::{Isometry3, Matrix3, Vector3};
 use crate::uncertainty::{RangeModel, SigmaSet, UncertainPose};
 
@@ -260,16 +261,12 @@ pub fn check_clearing(
     if cells <= MAX_CLEARED_BOUNDARY_CELLS {
         return Ok(());
     }
-    let range = if max_range < 1e6 {
-        format!("{max_range}")
-    } else {
-        format!("{max_range:e}")
-    };
     Err(format!(
-        "[sensor] max_range = {range} m at resolution {resolution} m: a viewpoint whose beams \
+        "[sensor] max_range = {} m at resolution {resolution} m: a viewpoint whose beams \
          all miss clears space bounded by {cells:.2e} cells, which the uncertainty-aware \
          methods evaluate one by one; sigmap handles at most \
-         {MAX_CLEARED_BOUNDARY_CELLS:.0e} (lower max_range or use a coarser resolution)"
+         {MAX_CLEARED_BOUNDARY_CELLS:.0e} (lower max_range or use a coarser resolution)",
+        metres(max_range)
     ))
 }
 
@@ -303,16 +300,12 @@ pub fn check_cloud_clearing(
     if cells <= MAX_CLEARED_BOUNDARY_CELLS {
         return Ok(());
     }
-    let reach = if reach < 1e6 {
-        format!("{reach:.2}")
-    } else {
-        format!("{reach:.2e}")
-    };
     Err(format!(
-        "its beams reach {reach} m at resolution {resolution} m: the space they clear is \
+        "its beams reach {} m at resolution {resolution} m: the space they clear is \
          bounded by {cells:.2e} cells, which the uncertainty-aware methods evaluate one by one; \
          sigmap handles at most {MAX_CLEARED_BOUNDARY_CELLS:.0e} (give a --max-range beyond \
-         which points are beams that returned nothing, or use a coarser resolution)"
+         which points are beams that returned nothing, or use a coarser resolution)",
+        metres(reach)
     ))
 }
 

@@ -2,7 +2,7 @@
 //! (Payeur's figures 1 and 6; docs/math.md §4.3–4.4) and the comparison of
 //! the propagators against Monte Carlo over rotation sigmas.
 
-use crate::error::{Error, Result};
+use crate::error::{metres, Error, Result};
 use crate::experiment::charts::{panels, Panel, Series};
 use crate::files::write_folder;
 use crate::mapping::octree::{check_span, span, RESOLUTIONS};
@@ -15,12 +15,7 @@ use std::path::Path;
 /// `opdf_fig6.svg` (σ = Δ, origin σ_o from 0 to 10Δ) into the folder `out`
 /// for a surface of thickness `delta` at range `r` (staged, then renamed).
 pub fn write_opdf_figures(out: &Path, delta: f64, r: f64) -> Result<()> {
-    // Lengths as given, or in exponent form where they are absurd.
-    let shown = |x: f64| match x.abs() {
-        a if (1e-6..1e6).contains(&a) => format!("{x}"),
-        _ => format!("{x:e}"),
-    };
-    let (delta_m, r_m) = (shown(delta), shown(r));
+    let (delta_m, r_m) = (metres(delta), metres(r));
     if !(RESOLUTIONS.contains(&delta) && r.is_finite() && r > 10.0 * delta) {
         return Err(Error::Usage(format!(
             "a surface thickness of {delta_m} m at range {r_m} m: the thickness is a voxel edge \

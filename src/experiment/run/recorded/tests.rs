@@ -307,7 +307,8 @@ fn a_cloud_reaching_far_past_its_scene_is_refused_before_the_merge() {
         .expect_err("refused")
         .to_string();
     assert!(
-        err.contains("method unscented, scan 0: its beams reach 1.00e100 m"),
+        err.contains("method unscented, scan 0: its beams reach 1.")
+            && err.contains("e100 m at resolution 0.02 m"),
         "{err}"
     );
     assert!(map(Method::Unscented, Some(3.0)).is_ok());
