@@ -201,8 +201,8 @@ pub const MAX_MAP_FILE_BYTES: u64 = 8 << 30;
 
 /// Reads a `.ot` or `.bt` file (by its first line): a regular file of at
 /// most [`MAX_MAP_FILE_BYTES`], so that a device or a pipe is refused, not
-/// read forever. `.bt` leaves take the
-/// clamp bounds, as OctoMap's reader gives them.
+/// read forever. `.bt` leaves take the clamp bounds, as OctoMap's reader
+/// gives them.
 pub fn read_octree(path: &Path, clamp: Clamp) -> Result<Octree> {
     check_input_file(path, MAX_MAP_FILE_BYTES)?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;

@@ -227,11 +227,14 @@ pub fn read_chain_file(path: &Path) -> Result<(UncertainChain, Option<UncertainP
             let covariance = spec(p.sigma.as_ref(), p.covariance.as_ref())
                 .to_matrix::<3>("[point]")
                 .map_err(bad)?;
-            if let Some(i) = (0..3).find(|&i| covariance[(i, i)].max(0.0).sqrt() > MAX_POINT_SIGMA)
+            let sigmas = covariance.diagonal().map(|v| v.max(0.0).sqrt());
+            if let Some((i, s)) = sigmas
+                .iter()
+                .enumerate()
+                .find(|(_, s)| **s > MAX_POINT_SIGMA)
             {
                 return Err(bad(format!(
-                    "[point]: sigma[{i}] = {:e} exceeds {MAX_POINT_SIGMA} m",
-                    covariance[(i, i)].sqrt()
+                    "[point]: sigma[{i}] = {s:e} exceeds {MAX_POINT_SIGMA} m"
                 )));
             }
             Some(UncertainPoint {

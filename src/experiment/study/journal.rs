@@ -99,8 +99,9 @@ pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
 }
 
 /// Feeds the file at `path` to `hash` as a field (its length, then its
-/// bytes, as `fingerprint` frames every field) and returns its own SHA-256, reading it in blocks: a mapper's
-/// program or a model file it names may be larger than memory.
+/// bytes, as `fingerprint` frames every field) and returns its own SHA-256,
+/// reading it in blocks: a mapper's program or a model file it names may be
+/// larger than memory.
 fn hash_file(path: &Path, hash: &mut Sha256) -> Result<Vec<u8>> {
     use std::io::Read as _;
     let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;

@@ -107,9 +107,9 @@ fn also_paired(
     if let Some(name) = first_repeat(names) {
         return Err(format!("also_paired lists {name} more than once"));
     }
+    let overridden = overrides.methods.is_some();
     let mut out = Vec::new();
     for name in names {
-        let overridden = overrides.methods.is_some();
         if Some(name.as_str()) == named || (!overridden && name == reference.as_str()) {
             return Err(format!(
                 "also_paired lists {name}, which is already the reference"
@@ -120,7 +120,7 @@ fn also_paired(
         }
         match methods.iter().find(|m| m.as_str() == name) {
             Some(method) => out.push(method.clone()),
-            None if overrides.methods.is_some() => {}
+            None if overridden => {}
             None => {
                 let listed: Vec<&str> = methods.iter().map(RunMethod::as_str).collect();
                 return Err(format!(
