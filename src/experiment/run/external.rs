@@ -331,10 +331,12 @@ impl ExternalMapper {
         outcome.map_err(with_tail)?;
         let map_path = dir.join(places.fill(&self.map));
         if !map_path.is_file() {
-            return Err(with_tail(format!(
-                "it wrote no map at {}",
-                map_path.display()
-            )));
+            let what = if map_path.exists() {
+                "its map is not a regular file:"
+            } else {
+                "it wrote no map at"
+            };
+            return Err(with_tail(format!("{what} {}", map_path.display())));
         }
         let map = read_octree(&map_path, run.clamp)
             .map_err(|e| with_tail(format!("its map is not an octree sigmap reads ({e})")))?;
@@ -425,14 +427,21 @@ fn kill_group(child: &std::process::Child) {
 /// The file that marks a kept private folder of a failed mapper run.
 const FAILED: &str = "FAILED.txt";
 
-/// The last [`STDERR_TAIL`] bytes of a command's stderr, on one line.
+/// The last [`STDERR_TAIL`] bytes of a command's stderr, on one line
+/// without control characters; only they are read, however much the
+/// command wrote.
 fn stderr_tail(path: &Path) -> String {
+    use std::io::{Seek, SeekFrom};
     let mut bytes = Vec::new();
     if let Ok(mut file) = std::fs::File::open(path) {
-        let _ = file.read_to_end(&mut bytes);
+        let length = file.metadata().map_or(0, |m| m.len());
+        let start = length.saturating_sub(STDERR_TAIL as u64);
+        if file.seek(SeekFrom::Start(start)).is_ok() {
+            let _ = file.take(STDERR_TAIL as u64).read_to_end(&mut bytes);
+        }
     }
-    let start = bytes.len().saturating_sub(STDERR_TAIL);
-    String::from_utf8_lossy(&bytes[start..])
+    String::from_utf8_lossy(&bytes)
+        .replace(char::is_control, " ")
         .split_whitespace()
         .collect::<Vec<_>>()
         .join(" ")

@@ -79,3 +79,26 @@ fn placeholders_become_the_runs_paths_and_numbers() {
         "/w/map_7.bt /s/scans.graph /s/poses.txt /s 0.01 2"
     );
 }
+
+#[test]
+fn only_the_end_of_a_huge_stderr_is_read() {
+    // A sparse 64 GiB stderr (NULs) ending in a message: reading it whole
+    // would exhaust memory; its tail is the message, on one line, with no
+    // control characters.
+    let dir = std::env::temp_dir().join(format!("sigmap-stderr-tail-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("stderr.txt");
+    let file = std::fs::File::create(&path).unwrap();
+    let length = 64 << 30;
+    file.set_len(length).unwrap();
+    let message = b"\nerror: the mapper\nran out of points\n";
+    std::os::unix::fs::FileExt::write_at(&file, message, length).unwrap();
+    assert_eq!(stderr_tail(&path), "error: the mapper ran out of points");
+    let short = dir.join("short.txt");
+    std::fs::write(&short, "x".repeat(STDERR_TAIL + 5) + " end").unwrap();
+    let tail = stderr_tail(&short);
+    assert_eq!(tail.len(), STDERR_TAIL);
+    assert!(tail.ends_with("x end"));
+    assert_eq!(stderr_tail(&dir.join("missing.txt")), "");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
