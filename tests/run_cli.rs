@@ -219,6 +219,14 @@ fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
         "results/baselines/quickstart.csv",
     ]);
     assert!(ok.status.success());
+    // "no regression: N metrics within tolerance of ...": N, the metrics
+    // the baseline gives a value to compare against.
+    let passed = String::from_utf8_lossy(&ok.stdout).to_string();
+    let compared = passed
+        .split_whitespace()
+        .nth(2)
+        .and_then(|n| n.parse::<usize>().ok())
+        .unwrap_or_else(|| panic!("{passed}"));
     let dir = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string("results/baselines/quickstart.csv").unwrap();
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
@@ -243,6 +251,12 @@ fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
         table.contains("unscented") && table.contains("false_free_rate"),
         "{table}"
     );
+    // The failure counts the same metrics as the pass.
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains(&format!("1 of {compared} metrics regressed")),
+        "{stderr}"
+    );
     let relaxed = sigmap(&[
         "regress",
         worse.to_str().unwrap(),
@@ -259,6 +273,22 @@ fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
         "results/baselines/quickstart.csv",
     ]);
     assert_eq!(missing.status.code(), Some(2));
+    // An absurd mean is one short column, not three hundred digits.
+    fields[4] = "1e308".into();
+    lines[row] = fields.join(",");
+    std::fs::write(&worse, lines.join("\n") + "\n").unwrap();
+    let out = sigmap(&[
+        "regress",
+        worse.to_str().unwrap(),
+        "--baseline",
+        "results/baselines/quickstart.csv",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        table.contains("1.0000e308") && table.lines().all(|l| l.len() < 100),
+        "{table}"
+    );
 }
 
 #[test]

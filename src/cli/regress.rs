@@ -33,7 +33,9 @@ pub(crate) fn run(args: RegressArgs) -> Result<()> {
     }
     let results = compare(&current, &baseline, &overrides);
     let regressed: Vec<_> = results.iter().filter(|c| c.regressed()).collect();
-    let compared = results.iter().filter(|c| c.baseline.is_finite()).count();
+    // A metric the baseline holds as NaN (the ray update's ANEES) has
+    // nothing to compare against, in either message.
+    let compared = results.iter().filter(|c| !c.baseline.is_nan()).count();
     if regressed.is_empty() {
         println!(
             "no regression: {compared} metrics within tolerance of {}",
@@ -47,19 +49,30 @@ pub(crate) fn run(args: RegressArgs) -> Result<()> {
     );
     for c in &regressed {
         println!(
-            "{:<11} {:<23} {:>12.5} {:>12.5} {:>+10.5} {:>10.5}",
+            "{:<11} {:<23} {:>12} {:>12} {:>10} {:>10}",
             c.method,
             c.metric,
-            c.baseline,
-            c.current,
-            c.current - c.baseline,
-            c.tolerance
+            column(c.baseline, false),
+            column(c.current, false),
+            column(c.current - c.baseline, true),
+            column(c.tolerance, false)
         );
     }
     Err(Error::CheckFailed(format!(
-        "{} of {} metrics regressed against {}",
+        "{} of {compared} metrics regressed against {}",
         regressed.len(),
-        results.len(),
         args.baseline.display()
     )))
+}
+
+/// A number of the table: five decimals, or in scientific notation where
+/// that would not fit its column; `signed` puts a sign on it.
+fn column(value: f64, signed: bool) -> String {
+    let fits = value.is_finite() && value.abs() < 1e6 && (value == 0.0 || value.abs() >= 1e-5);
+    match (fits, signed) {
+        (true, true) => format!("{value:+.5}"),
+        (true, false) => format!("{value:.5}"),
+        (false, true) => format!("{value:+.4e}"),
+        (false, false) => format!("{value:.4e}"),
+    }
 }
