@@ -236,6 +236,46 @@ pub fn write_folder(out: &Path, fill: impl FnOnce(&Path) -> Result<()>) -> Resul
     Ok(())
 }
 
+/// The files whose presence marks a results folder of `run`, `merge` or
+/// `submit` as sigmap's: a run's or merge's manifest, a run's journal and
+/// lock, a submission's record, the [`MARKER`] of a staged folder.
+const RESULTS_MARKS: [&str; 5] = [
+    "run.toml",
+    "runs.journal.csv",
+    RUN_LOCK,
+    "submit.toml",
+    MARKER,
+];
+
+/// A results folder's lock file ([`RunLock`]).
+const RUN_LOCK: &str = ".sigmap-run.lock";
+
+/// Creates the results folder `out`, or checks that the existing one may
+/// take sigmap's files: empty, or holding one of [`RESULTS_MARKS`]. A
+/// results folder gathers runs over several invocations, so its files are
+/// written one by one rather than the folder replaced whole; this check is
+/// what keeps them from replacing a user's own `runs.csv` or `report.html`.
+pub fn claim_results_folder(out: &Path) -> Result<()> {
+    if out.exists() {
+        let entries = std::fs::read_dir(out).map_err(|e| {
+            if out.is_dir() {
+                Error::io(out, e)
+            } else {
+                Error::input(out, "is a file, not a results folder: choose another --out")
+            }
+        })?;
+        let ours = RESULTS_MARKS.iter().any(|m| out.join(m).exists());
+        if !ours && entries.flatten().next().is_some() {
+            return Err(Error::input(
+                out,
+                "holds files sigmap did not write (no run.toml, submit.toml or \
+                 runs.journal.csv inside); choose another --out or move them away",
+            ));
+        }
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))
+}
+
 /// One writer per results folder: `.sigmap-run.lock` holds `PID@HOST` of
 /// the `sigmap run` writing there, and goes when it ends.
 pub struct RunLock {
@@ -248,7 +288,7 @@ impl RunLock {
     /// (a shared filesystem) is refused unless `break_lock`, since whether
     /// that process still runs cannot be told from here.
     pub fn acquire(dir: &Path, break_lock: bool) -> Result<RunLock> {
-        let path = dir.join(".sigmap-run.lock");
+        let path = dir.join(RUN_LOCK);
         for _ in 0..2 {
             match std::fs::OpenOptions::new()
                 .write(true)
@@ -343,6 +383,36 @@ mod tests {
         assert!(!out.join("a.csv").exists());
         // Nothing left behind beside it.
         assert_eq!(std::fs::read_dir(&root).unwrap().count(), 1);
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    #[test]
+    fn a_results_folder_of_the_users_own_files_is_refused() {
+        let root = scratch("claim");
+        // Created when missing; an empty one and sigmap's own are taken.
+        let fresh = root.join("a/b");
+        claim_results_folder(&fresh).unwrap();
+        assert!(fresh.is_dir());
+        claim_results_folder(&fresh).unwrap();
+        for mark in RESULTS_MARKS {
+            let out = root.join(format!("with{mark}"));
+            std::fs::create_dir_all(&out).unwrap();
+            std::fs::write(out.join(mark), "").unwrap();
+            std::fs::write(out.join("runs.csv"), "sigmap's").unwrap();
+            claim_results_folder(&out).unwrap();
+        }
+        // A folder of the user's files, and a file, are refused, untouched.
+        let mine = root.join("mine");
+        std::fs::create_dir_all(&mine).unwrap();
+        std::fs::write(mine.join("runs.csv"), "mine").unwrap();
+        let err = claim_results_folder(&mine).unwrap_err();
+        assert_eq!(err.exit_code(), 2);
+        assert!(err.to_string().contains("did not write"), "{err}");
+        assert_eq!(std::fs::read_dir(&mine).unwrap().count(), 1);
+        let file = mine.join("runs.csv");
+        let err = claim_results_folder(&file).unwrap_err();
+        assert!(err.to_string().contains("is a file"), "{err}");
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "mine");
         std::fs::remove_dir_all(&root).unwrap();
     }
 

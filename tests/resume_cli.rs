@@ -160,6 +160,33 @@ fn shards_merge_into_the_one_machine_result() {
     merge(&[&a, &b], &["shard1/runs.csv", "repeats a run"]);
     std::fs::write(&runs, &original).unwrap();
     merge(&[&a, &b, &a], &["shard 1/2 is given twice"]);
+    // A folder of the user's own files takes neither a merge nor a run:
+    // its runs.csv stays theirs.
+    let mine = dir.path().join("mine");
+    std::fs::create_dir_all(&mine).unwrap();
+    std::fs::write(mine.join("runs.csv"), "my own table\n").unwrap();
+    for out in [
+        merge_into(&[&a, &b], &mine),
+        sigmap(&[
+            "run",
+            "experiments/quickstart.toml",
+            "--out",
+            mine.to_str().unwrap(),
+        ]),
+    ] {
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(
+            stderr.contains("holds files sigmap did not write"),
+            "{stderr}"
+        );
+    }
+    assert_eq!(
+        std::fs::read_to_string(mine.join("runs.csv")).unwrap(),
+        "my own table\n"
+    );
+    assert_eq!(std::fs::read_dir(&mine).unwrap().count(), 1);
     let manifest = std::fs::read_to_string(b.join("run.toml"))
         .unwrap()
         .replace("quickstart", "paper");

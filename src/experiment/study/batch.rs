@@ -81,7 +81,7 @@ pub fn run_experiment(
         cell.check_truth_cost()?;
     }
     let out = results_dir(&experiment, options.out.as_deref());
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    crate::files::claim_results_folder(&out)?;
     let _lock = crate::files::RunLock::acquire(&out, options.break_lock)?;
     let inputs = fingerprint(&cells)?;
     let (shard, shards) = options.shard.unwrap_or((1, 1));

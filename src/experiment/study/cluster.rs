@@ -166,6 +166,7 @@ pub fn submit(
         Experiment::load_cell(&experiment_path, &cell)?;
     }
     let out = crate::experiment::study::batch::results_dir(&experiment, out);
+    crate::files::claim_results_folder(&out)?;
     std::fs::create_dir_all(out.join("logs")).map_err(|e| Error::io(&out, e))?;
     let out = absolute(&out)?;
     let sigmap = std::env::current_exe()

@@ -61,7 +61,7 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
         )));
     }
     let out = results_dir(&experiment, out);
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    crate::files::claim_results_folder(&out)?;
     let (study, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
     write_manifest(&out, &experiment, &expected, 1, 1)?;
     copy_first_run_files(shards, &out)?;
