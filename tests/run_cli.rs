@@ -228,23 +228,36 @@ fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
         .and_then(|n| n.parse::<usize>().ok())
         .unwrap_or_else(|| panic!("{passed}"));
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string("results/baselines/quickstart.csv").unwrap();
-    let mut lines: Vec<String> = text.lines().map(String::from).collect();
-    let row = lines
-        .iter()
-        .position(|l| l.starts_with(",unscented,false_free_rate,"))
-        .unwrap();
-    let mut fields: Vec<String> = lines[row].split(',').map(String::from).collect();
-    fields[4] = format!("{}", fields[4].parse::<f64>().unwrap() + 0.05);
-    lines[row] = fields.join(",");
     let worse = dir.path().join("worse.csv");
-    std::fs::write(&worse, lines.join("\n") + "\n").unwrap();
-    let out = sigmap(&[
-        "regress",
-        worse.to_str().unwrap(),
-        "--baseline",
-        "results/baselines/quickstart.csv",
-    ]);
+    let baseline = std::fs::read_to_string("results/baselines/quickstart.csv").unwrap();
+    // The baseline with the unscented false-free mean set to `mean(old)`,
+    // written to `worse` and regressed against the baseline with `extra`.
+    let regress_with = |mean: &dyn Fn(f64) -> String, extra: &[&str]| {
+        let lines: Vec<String> = baseline
+            .lines()
+            .map(
+                |line| match line.strip_prefix(",unscented,false_free_rate,") {
+                    Some(rest) => {
+                        let mut fields: Vec<String> = rest.split(',').map(String::from).collect();
+                        fields[1] = mean(fields[1].parse().unwrap());
+                        format!(",unscented,false_free_rate,{}", fields.join(","))
+                    }
+                    None => line.to_string(),
+                },
+            )
+            .collect();
+        std::fs::write(&worse, lines.join("\n") + "\n").unwrap();
+        let mut args = vec![
+            "regress",
+            worse.to_str().unwrap(),
+            "--baseline",
+            "results/baselines/quickstart.csv",
+        ];
+        args.extend(extra);
+        sigmap(&args)
+    };
+    let drifted = |m: f64| format!("{}", m + 0.05);
+    let out = regress_with(&drifted, &[]);
     assert_eq!(out.status.code(), Some(1));
     let table = String::from_utf8_lossy(&out.stdout);
     assert!(
@@ -257,15 +270,16 @@ fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
         stderr.contains(&format!("1 of {compared} metrics regressed")),
         "{stderr}"
     );
-    let relaxed = sigmap(&[
-        "regress",
-        worse.to_str().unwrap(),
-        "--baseline",
-        "results/baselines/quickstart.csv",
-        "--tolerance",
-        "false_free_rate=0.1",
-    ]);
+    let relaxed = regress_with(&drifted, &["--tolerance", "false_free_rate=0.1"]);
     assert!(relaxed.status.success());
+    // An absurd mean is one short column, not three hundred digits.
+    let out = regress_with(&|_| "1e308".into(), &[]);
+    assert_eq!(out.status.code(), Some(1));
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        table.contains("1.0000e308") && table.lines().all(|l| l.len() < 100),
+        "{table}"
+    );
     let missing = sigmap(&[
         "regress",
         "nope.csv",
@@ -273,22 +287,6 @@ fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
         "results/baselines/quickstart.csv",
     ]);
     assert_eq!(missing.status.code(), Some(2));
-    // An absurd mean is one short column, not three hundred digits.
-    fields[4] = "1e308".into();
-    lines[row] = fields.join(",");
-    std::fs::write(&worse, lines.join("\n") + "\n").unwrap();
-    let out = sigmap(&[
-        "regress",
-        worse.to_str().unwrap(),
-        "--baseline",
-        "results/baselines/quickstart.csv",
-    ]);
-    assert_eq!(out.status.code(), Some(1));
-    let table = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        table.contains("1.0000e308") && table.lines().all(|l| l.len() < 100),
-        "{table}"
-    );
 }
 
 #[test]
