@@ -438,16 +438,17 @@ pub(crate) fn cell_flag(e: Error) -> Error {
 }
 
 pub(crate) fn progress_bar(len: usize, what: &str, quiet: bool) -> ProgressBar {
-    let bar = ProgressBar::new(len as u64);
+    // Built, not set: nothing is drawn before the first length or step (a
+    // bar of unknown length would flash full, "0/0").
+    let mut bar = ProgressBar::new(len as u64).with_message(what.to_string());
     if quiet || !std::io::stderr().is_terminal() {
         bar.set_draw_target(ProgressDrawTarget::hidden());
     }
     if let Ok(style) =
         ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed} (eta {eta})")
     {
-        bar.set_style(style.progress_chars("=> "));
+        bar = bar.with_style(style.progress_chars("=> "));
     }
-    bar.set_message(what.to_string());
     bar
 }
 

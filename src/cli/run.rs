@@ -21,7 +21,12 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     // A run is one method on one seed's scans: the bar counts them.
     let bar = progress_bar(0, "runs", args.run.quiet);
     let start = |experiment: &Experiment, pending: usize, all: usize| {
-        bar.set_length(pending as u64);
+        if pending > 0 {
+            bar.set_length(pending as u64);
+        } else {
+            // Nothing to count: no bar at all (it would show full, "0/0").
+            bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+        }
         if pending > 0 && !args.run.quiet {
             announce_mappers(&bar, experiment);
             if let Some(note) = super::samples_note(experiment) {
