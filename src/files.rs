@@ -206,7 +206,7 @@ pub fn write_folder(out: &Path, fill: impl FnOnce(&Path) -> Result<()>) -> Resul
         // Our own process id: a leftover of this very process.
         std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
     }
-    std::fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+    std::fs::create_dir_all(&staging).map_err(|e| Error::io(out, e))?;
     let filled = fill(&staging).and_then(|()| {
         let marker = staging.join(MARKER);
         std::fs::write(
