@@ -187,6 +187,20 @@ fn shards_merge_into_the_one_machine_result() {
         "my own table\n"
     );
     assert_eq!(std::fs::read_dir(&mine).unwrap().count(), 1);
+    // Nor does a folder a live sigmap is writing into (its lock held by
+    // this test's own process).
+    let busy = dir.path().join("busy");
+    std::fs::create_dir_all(&busy).unwrap();
+    std::fs::write(
+        busy.join(".sigmap-run.lock"),
+        std::process::id().to_string(),
+    )
+    .unwrap();
+    let out = merge_into(&[&a, &b], &busy);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("is writing into this folder"), "{stderr}");
+    assert!(!busy.join("runs.csv").exists());
     let manifest = std::fs::read_to_string(b.join("run.toml"))
         .unwrap()
         .replace("quickstart", "paper");

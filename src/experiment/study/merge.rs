@@ -62,6 +62,7 @@ pub fn merge_shards(path: &Path, shards: &[PathBuf], out: Option<&Path>) -> Resu
     }
     let out = results_dir(&experiment, out);
     crate::files::claim_results_folder(&out)?;
+    let _lock = crate::files::RunLock::acquire(&out, false)?;
     let (study, charts) = finalize(&out, &experiment, &labels, rows, timings)?;
     write_manifest(&out, &experiment, &expected, 1, 1)?;
     copy_first_run_files(shards, &out)?;
