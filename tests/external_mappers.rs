@@ -309,9 +309,14 @@ fn a_failing_mapper_is_one_line_and_the_finished_runs_stay() {
         );
     }
     // What the timed-out command started was stopped with it (its process
-    // group): the background `sleep 30` is gone, or a zombie waiting for
-    // init, not sleeping on.
-    let pid = std::fs::read_to_string(&child_pid).unwrap();
+    // group): the background `sleep 30` is gone, not sleeping on.
+    assert!(!running(&child_pid));
+}
+
+/// Whether the process whose id the file at `pid_file` holds still runs
+/// (gone, or a zombie waiting for init, is not running).
+fn running(pid_file: &Path) -> bool {
+    let pid = std::fs::read_to_string(pid_file).unwrap();
     let stat = std::fs::read_to_string(format!("/proc/{}/stat", pid.trim())).unwrap_or_default();
     let state = stat
         .rsplit(')')
@@ -319,7 +324,70 @@ fn a_failing_mapper_is_one_line_and_the_finished_runs_stay() {
         .unwrap_or("")
         .split_whitespace()
         .next();
-    assert!(matches!(state, None | Some("Z")), "{pid}: {stat}");
+    !matches!(state, None | Some("Z"))
+}
+
+/// A mapper runs in a process group of its own, which the terminal's Ctrl-C
+/// and a batch system's SIGTERM to sigmap do not reach: sigmap stops it
+/// itself. What a mapper leaves running after it exits is stopped too.
+#[test]
+fn a_mapper_does_not_outlive_its_run_or_a_signal_that_stops_sigmap() {
+    let sigmap_bin = env!("CARGO_BIN_EXE_sigmap");
+    let dir = tempfile::tempdir().unwrap();
+    let pids = |name: &str| dir.path().join(name);
+    let run_with = |script: &str| {
+        let mapper = format!(
+            "[[mapper]]\nname = \"lingers\"\ncommand = {}\nmap = \"{{dir}}/map.ot\"\ntimeout_s = 120\n",
+            array(&["sh", "-c", script])
+        );
+        let file = experiment(dir.path(), "[1]", "[\"ray_update\"]", &mapper);
+        std::process::Command::new(sigmap_bin)
+            .args(run_args(&file, &dir.path().join("out"), &["--fresh"]))
+            .current_dir(root())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    // A mapper that maps, leaving a `sleep` behind: gone when its run ends.
+    let left = pids("left.pid");
+    let profile = root().join("experiments/profiles/collaborative_poses.toml");
+    let maps = format!(
+        "sleep 60 & echo $! > {}; exec {sigmap_bin} map --scans {{scans}} --profile {} \
+         --method ray_update --resolution {{resolution}} --max-range {{max_range}} \
+         --out {{dir}}/map.ot -q",
+        left.display(),
+        profile.display()
+    );
+    let finished = run_with(&maps).wait_with_output().unwrap();
+    assert!(
+        finished.status.success(),
+        "{}",
+        String::from_utf8_lossy(&finished.stderr)
+    );
+    assert!(!running(&left), "the mapper's leftover sleeps on");
+    // A mapper still at work when sigmap is stopped by SIGTERM.
+    let working = pids("working.pid");
+    let mut run = run_with(&format!("echo $$ > {}; exec sleep 60", working.display()));
+    let start = std::time::Instant::now();
+    while !working.exists() || std::fs::read_to_string(&working).unwrap().trim().is_empty() {
+        assert!(start.elapsed().as_secs() < 60, "the mapper never started");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let pid = libc::pid_t::try_from(run.id()).unwrap();
+    // SAFETY: kill(2) on the sigmap child this test started.
+    unsafe {
+        libc::kill(pid, libc::SIGTERM);
+    }
+    let status = run.wait().unwrap();
+    assert!(!status.success());
+    let stopped = std::time::Instant::now();
+    while running(&working) {
+        assert!(
+            stopped.elapsed().as_secs() < 5,
+            "the mapper sleeps on after sigmap was stopped"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
 }
 
 /// A map in another frame (here, every point 5 m away: a mapper that did

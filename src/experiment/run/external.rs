@@ -387,12 +387,14 @@ impl ExternalMapper {
             .stderr(file(stderr)?)
             .spawn()
             .map_err(|e| format!("could not start {}: {e}", program.display()))?;
+        // Killed when this returns, and by a signal that stops sigmap.
+        let group = stop::Group::list(child.id());
         let start = Instant::now();
         let status = loop {
             match child.try_wait() {
                 Ok(Some(status)) => break status,
                 Ok(None) if start.elapsed() > self.timeout => {
-                    kill_group(&child);
+                    group.kill();
                     let _ = child.kill();
                     let _ = child.wait();
                     return Err(format!(
@@ -408,18 +410,6 @@ impl ExternalMapper {
             Ok(())
         } else {
             Err(format!("the command failed ({status})"))
-        }
-    }
-}
-
-/// Sends SIGKILL to the process group `child` leads (it was started with
-/// `process_group(0)`, so the group's id is its process id).
-fn kill_group(child: &std::process::Child) {
-    if let Ok(group) = libc::pid_t::try_from(child.id()) {
-        // SAFETY: kill(2) with a negative pid signals that process group;
-        // it reads no memory of ours.
-        unsafe {
-            libc::kill(-group, libc::SIGKILL);
         }
     }
 }
@@ -510,5 +500,6 @@ fn remove_leftovers() {
     }
 }
 
+mod stop;
 #[cfg(test)]
 mod tests;
