@@ -251,7 +251,8 @@ const RESULTS_MARKS: [&str; 5] = [
 const RUN_LOCK: &str = ".sigmap-run.lock";
 
 /// Creates the results folder `out`, or checks that the existing one may
-/// take sigmap's files: empty, or holding one of [`RESULTS_MARKS`]. A
+/// take sigmap's files: empty (but for hidden files), or holding one of
+/// [`RESULTS_MARKS`]. A
 /// results folder gathers runs over several invocations, so its files are
 /// written one by one rather than the folder replaced whole; this check is
 /// what keeps them from replacing a user's own `runs.csv` or `report.html`.
@@ -265,7 +266,12 @@ pub fn claim_results_folder(out: &Path) -> Result<()> {
             }
         })?;
         let ours = RESULTS_MARKS.iter().any(|m| out.join(m).exists());
-        if !ours && entries.flatten().next().is_some() {
+        // Hidden files (a `.gitignore`, a `.gitkeep`) are no obstacle: no
+        // file sigmap writes there is hidden but its own marks and staging.
+        let visible = entries
+            .flatten()
+            .any(|e| !e.file_name().to_string_lossy().starts_with('.'));
+        if !ours && visible {
             return Err(Error::input(
                 out,
                 "holds files sigmap did not write (no run.toml, submit.toml or \
@@ -393,6 +399,8 @@ mod tests {
         let fresh = root.join("a/b");
         claim_results_folder(&fresh).unwrap();
         assert!(fresh.is_dir());
+        claim_results_folder(&fresh).unwrap();
+        std::fs::write(fresh.join(".gitignore"), "*\n").unwrap();
         claim_results_folder(&fresh).unwrap();
         for mark in RESULTS_MARKS {
             let out = root.join(format!("with{mark}"));
