@@ -94,9 +94,9 @@ fn print_headline(experiment: &Experiment, summary: &[SummaryRow], rows: usize) 
             .map_or(f64::NAN, |s| s.mean)
     };
     println!(
-        "{}: {} seeds x {} methods ({rows} runs), {} m voxels; means over seeds{}",
+        "{}: {} x {} methods ({rows} runs), {} m voxels; means over seeds{}",
         experiment.name(),
-        experiment.seeds().len(),
+        crate::experiment::output::seeds(experiment.seeds().len()),
         experiment.methods().len(),
         experiment.resolution(),
         if first.is_empty() {

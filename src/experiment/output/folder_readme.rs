@@ -34,13 +34,13 @@ pub fn folder_readme(experiment: &Experiment) -> String {
         .collect();
     let _ = writeln!(
         text,
-        "{TITLE}{}`\n\n{}\n\nWritten by `sigmap run {}` (sigmap {}): {} seeds, methods {}, \
+        "{TITLE}{}`\n\n{}\n\nWritten by `sigmap run {}` (sigmap {}): {}, methods {}, \
          paired against `{}`. Rerunning resumes; `--fresh` recomputes.\n",
         experiment.name(),
         experiment.description(),
         experiment.source().display(),
         env!("CARGO_PKG_VERSION"),
-        experiment.seeds().len(),
+        super::seeds(experiment.seeds().len()),
         methods.join(", "),
         experiment.reference()
     );

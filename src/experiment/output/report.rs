@@ -212,7 +212,7 @@ fn headline(
     html.push_str("<h2>Scores</h2>\n");
     let _ = writeln!(
         html,
-        "<p>Means over {} seeds, with the 95% interval of the mean; the full table is \
+        "<p>Means over {}, with the 95% interval of the mean; the full table is \
          summary.csv, every run runs.csv. Two methods of a seed map the same scans, so \
          they are compared seed by seed: the second table gives each method's mean \
          difference from <b>{}</b> (method − {}), its 95% interval and the verdict \
@@ -220,7 +220,7 @@ fn headline(
          false-free (truly occupied cells the map calls free: the collision risk), unknown \
          and Brier; an ANEES of 3 means honest covariances; – : the method propagates \
          none.</p>",
-        experiment.seeds().len(),
+        super::seeds(experiment.seeds().len()),
         experiment.reference(),
         experiment.reference()
     );
