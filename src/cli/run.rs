@@ -93,11 +93,13 @@ fn print_headline(experiment: &Experiment, summary: &[SummaryRow], rows: usize) 
             .find(|s| s.cell == first && s.method == method && s.metric == metric)
             .map_or(f64::NAN, |s| s.mean)
     };
+    use crate::experiment::output::count;
     println!(
-        "{}: {} x {} methods ({rows} runs), {} m voxels; means over seeds{}",
+        "{}: {} x {} ({}), {} m voxels; means over seeds{}",
         experiment.name(),
-        crate::experiment::output::seeds(experiment.seeds().len()),
-        experiment.methods().len(),
+        count(experiment.seeds().len(), "seed"),
+        count(experiment.methods().len(), "method"),
+        count(rows, "run"),
         experiment.resolution(),
         if first.is_empty() {
             String::new()
@@ -207,7 +209,11 @@ fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
                 p.mean,
                 p.ci95_low,
                 p.ci95_high,
-                p.verdict.as_str()
+                if p.n < 2 {
+                    "one seed: no interval"
+                } else {
+                    p.verdict.as_str()
+                }
             );
         }
     }

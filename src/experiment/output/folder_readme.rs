@@ -40,7 +40,7 @@ pub fn folder_readme(experiment: &Experiment) -> String {
         experiment.description(),
         experiment.source().display(),
         env!("CARGO_PKG_VERSION"),
-        super::seeds(experiment.seeds().len()),
+        super::count(experiment.seeds().len(), "seed"),
         methods.join(", "),
         experiment.reference()
     );

@@ -8,21 +8,21 @@ pub mod report;
 pub mod scan_files;
 pub mod wrong_cells;
 
-/// `n` seeds, in words: "1 seed", "3 seeds".
-pub fn seeds(n: usize) -> String {
+/// `n` of `noun`, in words: "1 seed", "3 seeds".
+pub fn count(n: usize, noun: &str) -> String {
     if n == 1 {
-        "1 seed".into()
+        format!("1 {noun}")
     } else {
-        format!("{n} seeds")
+        format!("{n} {noun}s")
     }
 }
 
 #[cfg(test)]
 mod tests {
     #[test]
-    fn one_seed_is_singular() {
-        assert_eq!(super::seeds(1), "1 seed");
-        assert_eq!(super::seeds(0), "0 seeds");
-        assert_eq!(super::seeds(40), "40 seeds");
+    fn one_is_singular() {
+        assert_eq!(super::count(1, "seed"), "1 seed");
+        assert_eq!(super::count(0, "seed"), "0 seeds");
+        assert_eq!(super::count(40, "run"), "40 runs");
     }
 }

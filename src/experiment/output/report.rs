@@ -220,7 +220,7 @@ fn headline(
          false-free (truly occupied cells the map calls free: the collision risk), unknown \
          and Brier; an ANEES of 3 means honest covariances; – : the method propagates \
          none.</p>",
-        super::seeds(experiment.seeds().len()),
+        super::count(experiment.seeds().len(), "seed"),
         experiment.reference(),
         experiment.reference()
     );
@@ -365,7 +365,13 @@ fn paired_rows(html: &mut String, header: &str, rows: &[(String, Vec<&PairedRow>
                             p.ci95_low, p.ci95_high
                         );
                     }
-                    let _ = write!(html, "<br>{}</td>", verdict_words(p.verdict));
+                    let words = if p.n < 2 {
+                        // No interval to judge by: say so, not "within noise".
+                        "one seed: no interval"
+                    } else {
+                        verdict_words(p.verdict)
+                    };
+                    let _ = write!(html, "<br>{words}</td>");
                 }
                 _ => html.push_str("<td>–</td>"),
             }
@@ -464,6 +470,20 @@ mod tests {
         );
         assert!(html.contains("<tr><th>against itself</th>"), "{html}");
         assert!(!html.contains("<th>against itself at"), "{html}");
+        assert!(html.contains("<br>better</td>"), "{html}");
+        // One seed has no interval: the table says so rather than "within
+        // noise" (paired.csv's `within_noise` with n = 1, as documented).
+        let single = [PairedRow {
+            n: 1,
+            ci95_low: f64::NAN,
+            ci95_high: f64::NAN,
+            verdict: Verdict::WithinNoise,
+            ..row("f1")
+        }];
+        let mut html = String::new();
+        paired_table(&mut html, &experiment, cell, &single);
+        assert!(html.contains("<br>one seed: no interval</td>"), "{html}");
+        assert!(!html.contains("within noise"), "{html}");
     }
 
     #[test]
