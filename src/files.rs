@@ -258,13 +258,13 @@ const RUN_LOCK: &str = ".sigmap-run.lock";
 /// what keeps them from replacing a user's own `runs.csv` or `report.html`.
 pub fn claim_results_folder(out: &Path) -> Result<()> {
     if out.exists() {
-        let entries = std::fs::read_dir(out).map_err(|e| {
-            if out.is_dir() {
-                Error::io(out, e)
-            } else {
-                Error::input(out, "is a file, not a results folder: choose another --out")
-            }
-        })?;
+        if !out.is_dir() {
+            return Err(Error::input(
+                out,
+                "is a file, not a results folder: choose another --out",
+            ));
+        }
+        let entries = std::fs::read_dir(out).map_err(|e| Error::io(out, e))?;
         let ours = RESULTS_MARKS.iter().any(|m| out.join(m).exists());
         // Hidden files (a `.gitignore`, a `.gitkeep`) are no obstacle: no
         // file sigmap writes there is hidden but its own marks and staging.

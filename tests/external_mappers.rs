@@ -240,11 +240,7 @@ fn a_rebuilt_mapper_script_is_new_input() {
 fn a_failing_mapper_is_one_line_and_the_finished_runs_stay() {
     let sigmap_bin = env!("CARGO_BIN_EXE_sigmap");
     let profile = root().join("experiments/profiles/collaborative_poses.toml");
-    let good = format!(
-        "{sigmap_bin} map --scans {{scans}} --profile {} --method ray_update --resolution \
-         {{resolution}} --max-range {{max_range}} --out {{dir}}/map.ot -q",
-        profile.display()
-    );
+    let good = ray_update_line();
     // Seed 1 maps; seed 2 fails as each case says.
     let cases = [
         (
@@ -313,6 +309,18 @@ fn a_failing_mapper_is_one_line_and_the_finished_runs_stay() {
     assert!(!running(&child_pid));
 }
 
+/// A shell line that maps `{scans}` into `{dir}/map.ot` with sigmap's ray
+/// update at `{resolution}`: a mapper that succeeds.
+fn ray_update_line() -> String {
+    let profile = root().join("experiments/profiles/collaborative_poses.toml");
+    format!(
+        "{} map --scans {{scans}} --profile {} --method ray_update --resolution \
+         {{resolution}} --max-range {{max_range}} --out {{dir}}/map.ot -q",
+        env!("CARGO_BIN_EXE_sigmap"),
+        profile.display()
+    )
+}
+
 /// Whether the process whose id the file at `pid_file` holds still runs
 /// (gone, or a zombie waiting for init, is not running).
 fn running(pid_file: &Path) -> bool {
@@ -350,13 +358,10 @@ fn a_mapper_does_not_outlive_its_run_or_a_signal_that_stops_sigmap() {
     };
     // A mapper that maps, leaving a `sleep` behind: gone when its run ends.
     let left = pids("left.pid");
-    let profile = root().join("experiments/profiles/collaborative_poses.toml");
     let maps = format!(
-        "sleep 60 & echo $! > {}; exec {sigmap_bin} map --scans {{scans}} --profile {} \
-         --method ray_update --resolution {{resolution}} --max-range {{max_range}} \
-         --out {{dir}}/map.ot -q",
+        "sleep 60 & echo $! > {}; exec {}",
         left.display(),
-        profile.display()
+        ray_update_line()
     );
     let finished = run_with(&maps).wait_with_output().unwrap();
     assert!(

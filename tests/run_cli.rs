@@ -289,6 +289,33 @@ fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
     assert_eq!(missing.status.code(), Some(2));
 }
 
+/// A one-seed run's headline counts in the singular, and it prints no
+/// paired table (one seed has no interval).
+#[test]
+fn a_one_seed_run_is_counted_in_the_singular() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("one.toml");
+    let text = portable_quickstart()
+        .replace("resolution = 0.01", "resolution = 0.05")
+        .replace("seeds = [1, 2, 3]", "seeds = [1]");
+    std::fs::write(&path, text).unwrap();
+    let out = dir.path().join("out");
+    let run = sigmap(&[
+        "run",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(stdout.contains("1 seed x 3 methods (3 runs)"), "{stdout}");
+    assert!(!stdout.contains("paired against"), "{stdout}");
+}
+
 #[test]
 fn sweeps_run_every_cell_and_reject_unknown_fields() {
     let dir = tempfile::tempdir().unwrap();

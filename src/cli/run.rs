@@ -209,11 +209,7 @@ fn print_paired(experiment: &Experiment, paired: &[PairedRow]) {
                 p.mean,
                 p.ci95_low,
                 p.ci95_high,
-                if p.n < 2 {
-                    "one seed: no interval"
-                } else {
-                    p.verdict.as_str()
-                }
+                p.verdict.as_str()
             );
         }
     }

@@ -367,7 +367,7 @@ fn paired_rows(html: &mut String, header: &str, rows: &[(String, Vec<&PairedRow>
                     }
                     let words = if p.n < 2 {
                         // No interval to judge by: say so, not "within noise".
-                        "one seed: no interval"
+                        crate::experiment::study::summary::NO_INTERVAL
                     } else {
                         verdict_words(p.verdict)
                     };

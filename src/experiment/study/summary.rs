@@ -93,6 +93,11 @@ pub fn summarise(rows: &[RunRow], cells: &[String], methods: &[RunMethod]) -> Ve
     out
 }
 
+/// What report.html says of a pair with fewer than two seeds (its verdict
+/// `within_noise`): there is no interval. (`sigmap run`'s summary prints no
+/// paired table for a one-seed run.)
+pub const NO_INTERVAL: &str = "one seed: no interval";
+
 /// What a paired difference says of a method against the reference.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
