@@ -30,7 +30,7 @@ impl Mesh {
         crate::error::check_input_file(path, MAX_MESH_BYTES)?;
         let mesh = match ext.as_deref() {
             Some("obj") => Self::load_obj(path)?,
-            Some("stl") => Self::load_stl(path)?,
+            Some("stl") => stl::load(path)?,
             _ => {
                 return Err(Error::input(
                     path,
@@ -78,24 +78,6 @@ impl Mesh {
             );
         }
         Ok(mesh)
-    }
-
-    fn load_stl(path: &Path) -> Result<Self> {
-        let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-        let stl = stl_io::read_stl(&mut file)
-            .map_err(|e| Error::input(path, format!("malformed STL: {e}")))?;
-        Ok(Mesh {
-            vertices: stl
-                .vertices
-                .iter()
-                .map(|v| Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64))
-                .collect(),
-            triangles: stl
-                .faces
-                .iter()
-                .map(|f| f.vertices.map(|i| i as u32))
-                .collect(),
-        })
     }
 
     /// Multiplies every vertex by `scale` (per axis). A negative determinant
@@ -169,6 +151,8 @@ impl Mesh {
         Ok(())
     }
 }
+
+mod stl;
 
 #[cfg(test)]
 mod tests {
