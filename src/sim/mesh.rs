@@ -29,7 +29,7 @@ impl Mesh {
         }
         crate::error::check_input_file(path, MAX_MESH_BYTES)?;
         let mesh = match ext.as_deref() {
-            Some("obj") => Self::load_obj(path)?,
+            Some("obj") => Self::load_obj(path)?.welded(),
             Some("stl") => stl::load(path)?,
             _ => {
                 return Err(Error::input(
@@ -78,6 +78,37 @@ impl Mesh {
             );
         }
         Ok(mesh)
+    }
+
+    /// The mesh with the vertices at exactly the same position merged into
+    /// the first of them, as an STL file is read: an exporter that writes a
+    /// copy of each vertex for every face it bounds leaves a closed surface
+    /// whose triangles share no index. Positions are not rounded, and a
+    /// mesh without such copies is returned as it was.
+    fn welded(mut self) -> Self {
+        let mut first: HashMap<[u64; 3], u32> = HashMap::with_capacity(self.vertices.len());
+        let mut kept = Vec::with_capacity(self.vertices.len());
+        let merged: Vec<u32> = self
+            .vertices
+            .iter()
+            .map(|v| {
+                // `+ 0.0` makes −0 and +0 one position.
+                let at = [v.x, v.y, v.z].map(|c| (c + 0.0).to_bits());
+                *first.entry(at).or_insert_with(|| {
+                    kept.push(*v);
+                    (kept.len() - 1) as u32
+                })
+            })
+            .collect();
+        if kept.len() == self.vertices.len() {
+            return self;
+        }
+        for i in self.triangles.iter_mut().flatten() {
+            // An index past the end stays past it, for `check_closed` to name.
+            *i = merged.get(*i as usize).copied().unwrap_or(u32::MAX);
+        }
+        self.vertices = kept;
+        self
     }
 
     /// Multiplies every vertex by `scale` (per axis). A negative determinant
@@ -194,6 +225,33 @@ mod tests {
 
         let mirrored = mesh.scaled(Vector3::new(-1.0, 1.0, 1.0));
         mirrored.check_closed().unwrap();
+    }
+
+    #[test]
+    fn an_obj_with_a_copy_of_each_vertex_per_face_is_one_closed_surface() {
+        let dir = tempfile::tempdir().unwrap();
+        let cube = Mesh::load(&{
+            let path = dir.path().join("cube.obj");
+            std::fs::write(&path, cube_obj()).unwrap();
+            path
+        })
+        .unwrap();
+        // Every triangle with vertices of its own, as some exporters write.
+        let mut text = String::new();
+        for (k, t) in cube.triangles.iter().enumerate() {
+            for &i in t {
+                let v = cube.vertices[i as usize];
+                text += &format!("v {} {} {}\n", v.x, v.y, v.z);
+            }
+            text += &format!("f {} {} {}\n", 3 * k + 1, 3 * k + 2, 3 * k + 3);
+        }
+        let path = dir.path().join("split.obj");
+        std::fs::write(&path, text).unwrap();
+        let split = Mesh::load(&path).unwrap();
+        assert_eq!(split.vertices.len(), 8);
+        assert_eq!(split.triangles.len(), 12);
+        split.check_closed().unwrap();
+        assert!((split.signed_volume() - 1.0).abs() < 1e-12);
     }
 
     #[test]
