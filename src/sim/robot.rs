@@ -287,6 +287,22 @@ impl KinematicChain {
             .collect()
     }
 
+    /// An upper bound of how far (m) the tip's origin can stand from the
+    /// base's: the lengths of the joints' offsets plus each prismatic
+    /// joint's longest travel (the triangle inequality along the chain).
+    pub fn reach(&self) -> f64 {
+        self.joints
+            .iter()
+            .map(|j| {
+                let travel = match j.motion {
+                    JointMotion::Prismatic { lower, upper, .. } => lower.abs().max(upper.abs()),
+                    _ => 0.0,
+                };
+                j.origin.translation.vector.norm() + travel
+            })
+            .sum()
+    }
+
     /// Checks a configuration: right length, finite, within every joint limit.
     pub fn check(&self, q: &[f64]) -> Result<()> {
         if q.len() != self.dof() {

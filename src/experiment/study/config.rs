@@ -6,7 +6,7 @@ use crate::experiment::study::run_method::RunMethod;
 use crate::geometry::{Isometry3, Pose, Vector3};
 use crate::mapping::scan::{check_sample_budget, Layouts, MapperView};
 use crate::mapping::settings::MapSettings;
-use crate::sim::ik::{self, IkOptions, IkTarget};
+use crate::sim::ik::{self, IkFailure, IkOptions, IkTarget};
 use crate::sim::profile::ErrorProfile;
 use crate::sim::robot::{KinematicChain, Robot};
 use crate::sim::scene::Scene;
@@ -358,10 +358,11 @@ impl Experiment {
                 let base_from_scene =
                     self.world_from_base.inverse() * self.world_from_scene.to_isometry();
                 let from = from.normalize();
+                let position = (base_from_scene
+                    * nalgebra::Point3::from(Vector3::from(target) + from * distance))
+                .coords;
                 let goal = IkTarget::LookAt {
-                    position: (base_from_scene
-                        * nalgebra::Point3::from(Vector3::from(target) + from * distance))
-                    .coords,
+                    position,
                     boresight: Unit::new_normalize(base_from_scene * -from),
                 };
                 let options = IkOptions {
@@ -369,12 +370,7 @@ impl Experiment {
                     ..IkOptions::default()
                 };
                 let joints = ik::solve(&self.sensor_chain, &goal, None, &options).map_err(|f| {
-                    bad(format!(
-                        "{request} is unreachable for robot '{}': best position error {:.4} m \
-                         (orientation {:.4} rad) after {} restarts; move the target closer to the base \
-                         or change `distance`/`from`",
-                        self.robot.name, f.position_error, f.orientation_error, options.restarts
-                    ))
+                    bad(self.unreachable(&request, &position, &f, options.restarts))
                 })?;
                 Viewpoint { request, joints }
             }
@@ -393,6 +389,40 @@ impl Experiment {
             )));
         }
         Ok(viewpoint)
+    }
+
+    /// Why no configuration puts the sensor at `position` (base frame) for
+    /// a look-at viewpoint, and what to change: a position beyond the arm's
+    /// reach needs the target nearer; one within it is barred by the joint
+    /// limits at that orientation (or lies too near the base), which `from`
+    /// or `distance` move.
+    fn unreachable(
+        &self,
+        request: &str,
+        position: &Vector3,
+        failure: &IkFailure,
+        restarts: usize,
+    ) -> String {
+        let robot = &self.robot.name;
+        let residual = format!(
+            "best position error {:.4} m, orientation {:.4} rad, after {restarts} restarts",
+            failure.position_error, failure.orientation_error
+        );
+        let (from_base, reach) = (position.norm(), self.sensor_chain.reach());
+        if from_base > reach {
+            format!(
+                "{request} is out of reach for robot '{robot}': the sensor would stand {from_base:.3} m \
+                 from its base, which it reaches to at most {reach:.3} m; move the target closer to \
+                 the base or shorten `distance`"
+            )
+        } else {
+            format!(
+                "{request} is unreachable for robot '{robot}': the sensor would stand {from_base:.3} m \
+                 from its base (its reach is at most {reach:.3} m), but no configuration within the \
+                 joint limits puts it there looking along `from` ({residual}); change `from` or \
+                 `distance`, or move the target away from the base if it is near"
+            )
+        }
     }
 }
 
