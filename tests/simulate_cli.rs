@@ -214,9 +214,13 @@ fn bad_inputs_exit_2_naming_file_and_problem() {
     assert_bad(
         "experiments/quickstart.toml",
         |t| {
-            t.replacen("look_at = [0.0, 0.05, 0.05]", "look_at = [-0.55, 0.0, -0.3]", 1)
-                .replacen("from = [0.0, 0.7, 1.0]", "from = [0.0, 0.0, 1.0]", 1)
-                .replacen("distance = 0.45", "distance = 0.3", 1)
+            t.replacen(
+                "look_at = [0.0, 0.05, 0.05]",
+                "look_at = [-0.55, 0.0, -0.3]",
+                1,
+            )
+            .replacen("from = [0.0, 0.7, 1.0]", "from = [0.0, 0.0, 1.0]", 1)
+            .replacen("distance = 0.45", "distance = 0.3", 1)
         },
         "quickstart.toml",
         "unreachable for robot 'ur5': the sensor would stand 0.000 m from its base",

@@ -156,6 +156,27 @@ fn chain_joint(
     })
 }
 
+/// What of xacro's macro language `text` still holds outside its comments
+/// (an element `<xacro:…>` or a property `${…}`), if any: a URDF reader
+/// would take such a file for a robot without the macros' links and with
+/// their values unread. A plain URDF may declare the `xacro` namespace.
+fn xacro_left_in(text: &str) -> Option<&'static str> {
+    let mut rest = text;
+    loop {
+        let (before, after) = match rest.split_once("<!--") {
+            Some((before, after)) => (before, Some(after)),
+            None => (rest, None),
+        };
+        if before.contains("<xacro:") {
+            return Some("<xacro:…> elements");
+        }
+        if before.contains("${") {
+            return Some("${…} properties");
+        }
+        rest = after?.split_once("-->").map_or("", |(_, tail)| tail);
+    }
+}
+
 /// A link from which the parent joints never reach a root (within as many
 /// steps as there are links): the joints form a cycle through it.
 fn first_in_a_cycle<'a>(
@@ -179,6 +200,17 @@ impl Robot {
     /// that exist, a tree (each link has at most one parent), finite origins.
     pub fn load(path: &Path) -> Result<Self> {
         let text = crate::error::read_text(path)?;
+        if let Some(what) = xacro_left_in(&text) {
+            return Err(Error::input(
+                path,
+                format!(
+                    "an unexpanded xacro file (it holds {what}): expand it into a URDF first, \
+                     e.g. `xacro {} > robot.urdf` (ROS's xacro package)",
+                    path.file_name()
+                        .map_or(String::new(), |n| n.to_string_lossy().into_owned())
+                ),
+            ));
+        }
         let urdf = urdf_rs::read_from_string(&text)
             .map_err(|e| Error::input(path, format!("malformed URDF: {e}")))?;
         let links: Vec<String> = urdf.links.iter().map(|l| l.name.clone()).collect();

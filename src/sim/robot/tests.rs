@@ -199,6 +199,48 @@ fn unknown_links_and_bad_files_are_input_errors() {
     .unwrap();
     let msg = Robot::load(&dangling).unwrap_err().to_string();
     assert!(msg.contains("link 'b'"), "{msg}");
+    // A xacro file names itself, whatever its extension; a URDF that only
+    // declares the namespace or keeps a macro in a comment is read.
+    let ur5 = std::fs::read_to_string(robots_dir().join("ur5.urdf")).unwrap();
+    for (edit, says) in [
+        (
+            ur5.replacen(
+                "</robot>",
+                "<xacro:include filename=\"arm.xacro\"/></robot>",
+                1,
+            ),
+            "<xacro:",
+        ),
+        (
+            ur5.replacen("xyz=\"0 0 0.089159\"", "xyz=\"0 0 ${d1}\"", 1),
+            "${",
+        ),
+    ] {
+        let file = dir.path().join("arm.urdf");
+        std::fs::write(&file, edit).unwrap();
+        let msg = Robot::load(&file).unwrap_err().to_string();
+        assert!(
+            msg.contains("arm.urdf") && msg.contains("unexpanded xacro") && msg.contains(says),
+            "{msg}"
+        );
+    }
+    let plain = ur5
+        .replacen(
+            "<robot ",
+            "<robot xmlns:xacro=\"http://www.ros.org/wiki/xacro\" ",
+            1,
+        )
+        .replacen(
+            "</robot>",
+            "<!-- <xacro:arm prefix=\"${p}\"/> --></robot>",
+            1,
+        );
+    let file = dir.path().join("plain.urdf");
+    std::fs::write(&file, plain).unwrap();
+    Robot::load(&file)
+        .unwrap()
+        .chain("base_link", "tool0")
+        .unwrap();
     assert!(Robot::load(&dir.path().join("missing.urdf"))
         .unwrap_err()
         .to_string()
