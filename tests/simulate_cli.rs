@@ -225,6 +225,16 @@ fn bad_inputs_exit_2_naming_file_and_problem() {
         "quickstart.toml",
         "unreachable for robot 'ur5': the sensor would stand 0.000 m from its base",
     );
+    // A mesh in millimetres read as metres swallows the arm: the error asks.
+    assert_bad(
+        "scenes/tabletop.toml",
+        |t| {
+            t.replace("scale = 0.015 ", "scale = 15.0 ")
+                .replace("xyz = [0.0, -0.05, 0.0]", "xyz = [0.0, -0.05, -40.0]")
+        },
+        "quickstart.toml",
+        "is inside object 'bunny' (a mesh",
+    );
     assert_bad(
         "experiments/quickstart.toml",
         |t| t.replace("distance = 0.45", "distance = nan"),
@@ -237,6 +247,27 @@ fn bad_inputs_exit_2_naming_file_and_problem() {
         "quickstart.toml",
         "beam_pooling = \"face\": use \"faces\"",
     );
+}
+
+#[test]
+fn a_mesh_far_larger_than_the_workspace_is_named_in_a_note() {
+    // The bunny 130 times its size (31 m across), under the table with
+    // its ears in the workspace: it runs, and says what the size suggests.
+    let (code, stderr, wrote) = broken("scenes/tabletop.toml", |t| {
+        t.replace("scale = 0.015 ", "scale = 2.0 ")
+            .replace("xyz = [0.0, -0.05, 0.0]", "xyz = [0.0, -0.05, -19.32]")
+    });
+    assert_eq!(code, 0, "{stderr}");
+    assert!(wrote);
+    assert!(
+        stderr.contains("note: object 'bunny' of ")
+            && stderr.contains("times the workspace's diagonal")
+            && stderr.contains("`scale = 0.001`"),
+        "{stderr}"
+    );
+    let (code, stderr, _) = broken("scenes/tabletop.toml", |t| t);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(!stderr.contains("note: object"), "{stderr}");
 }
 
 #[test]

@@ -114,9 +114,15 @@ fn load_experiment(path: &Path, args: &MapArgs) -> Result<Experiment> {
     })
 }
 
-/// What the user should know before the run: which sweep cell is mapped,
-/// and whether the default samples were left off.
+/// What the user should know before the run: a mesh that may be in
+/// millimetres, which sweep cell is mapped, and whether the default samples
+/// were left off.
 fn print_notes(args: &MapArgs, experiment: &Experiment) {
+    if !args.run.quiet {
+        for note in super::mesh_unit_notes(experiment) {
+            eprintln!("{note}");
+        }
+    }
     if args.cell.is_none() && !experiment.sweep().is_empty() && !args.run.quiet {
         let cells = experiment.cells();
         eprintln!(

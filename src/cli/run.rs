@@ -29,7 +29,8 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         }
         if pending > 0 && !args.run.quiet {
             announce_mappers(&bar, experiment);
-            if let Some(note) = super::samples_note(experiment) {
+            let notes = super::mesh_unit_notes(experiment).into_iter();
+            for note in notes.chain(super::samples_note(experiment)) {
                 bar.suspend(|| eprintln!("{note}"));
             }
         }

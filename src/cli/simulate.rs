@@ -13,6 +13,11 @@ pub(crate) fn run(args: SimulateArgs) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| experiment::default_scan_dir(&experiment));
+    if !args.run.quiet {
+        for note in super::mesh_unit_notes(&experiment) {
+            eprintln!("{note}");
+        }
+    }
     let bar = progress_bar(experiment.viewpoints().len(), "viewpoints", args.run.quiet);
     let start = Instant::now();
     let run = with_threads(args.run.threads, || {

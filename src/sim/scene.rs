@@ -31,6 +31,11 @@ impl Bounds {
         (self.max - self.min).into()
     }
 
+    /// The length of the box's diagonal (m).
+    pub fn diagonal(&self) -> f64 {
+        (self.max - self.min).norm()
+    }
+
     /// The largest distance of the box from the origin along any axis (m).
     pub fn reach(&self) -> f64 {
         self.min
@@ -70,6 +75,12 @@ pub struct SceneObject {
     /// rays on cylinders by GJK, several times slower than the closed form.
     cylinder: Option<(f64, f64)>,
 }
+
+/// How many times the workspace's diagonal a mesh object may span before
+/// sigmap asks whether its file is in millimetres
+/// ([`Scene::oversized_meshes`]): a floor or a wall may be a few times the
+/// workspace, a CAD part in millimetres is a thousand times itself.
+pub const MESH_SPAN_RATIO: f64 = 20.0;
 
 /// A loaded scene: solids, a BVH over them, and the workspace to map.
 pub struct Scene {
@@ -397,6 +408,17 @@ impl Scene {
     /// The solids.
     pub fn objects(&self) -> &[SceneObject] {
         &self.objects
+    }
+
+    /// The mesh objects whose bounding box's diagonal is more than
+    /// [`MESH_SPAN_RATIO`] times the workspace's, with that diagonal (m): a
+    /// mesh written in millimetres and read as metres, most likely.
+    pub fn oversized_meshes(&self) -> impl Iterator<Item = (&SceneObject, f64)> {
+        let workspace = self.workspace.diagonal();
+        self.objects.iter().filter_map(move |object| {
+            let span = object.bounds.diagonal();
+            (object.kind == "mesh" && span > MESH_SPAN_RATIO * workspace).then_some((object, span))
+        })
     }
 
     /// Total triangle count of the meshes.

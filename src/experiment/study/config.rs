@@ -381,11 +381,21 @@ impl Experiment {
                 .vector,
         );
         if let Some(object) = self.scene.object_containing(&origin) {
+            let name = &self.scene.objects()[object].name;
+            let millimetres = self
+                .scene
+                .oversized_meshes()
+                .find(|(oversized, _)| &oversized.name == name)
+                .map_or(String::new(), |(_, span)| {
+                    format!(
+                        " (a mesh {span:.3} m across, far larger than the workspace: if its file \
+                         is in millimetres, give the object `scale = 0.001`)"
+                    )
+                });
             return Err(bad(format!(
-                "{}: the sensor origin {:?} is inside object '{}'",
+                "{}: the sensor origin {:?} is inside object '{name}'{millimetres}",
                 viewpoint.request,
                 origin.coords.as_slice(),
-                self.scene.objects()[object].name
             )));
         }
         Ok(viewpoint)
