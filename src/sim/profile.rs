@@ -16,6 +16,58 @@ pub enum ArmError {
     /// Independent joint-encoder errors (radians or metres per joint),
     /// propagated through forward kinematics: Γ_rw = J Σ_q Jᵀ is full.
     Joints(Vec<f64>),
+    /// The same encoder error on every joint, whatever their number
+    /// (`joint_sigma = 0.00052`): [`ArmError::Joints`] on the arm it is
+    /// given.
+    EveryJoint(f64),
+}
+
+impl ArmError {
+    /// The encoder errors of an arm of `joints` joints, if the error is
+    /// given per joint (a list of another length is returned as written,
+    /// for the caller to refuse).
+    pub fn joint_sigmas(&self, joints: usize) -> Option<Vec<f64>> {
+        match self {
+            ArmError::Pose(_) => None,
+            ArmError::Joints(sigmas) => Some(sigmas.clone()),
+            ArmError::EveryJoint(sigma) => Some(vec![*sigma; joints]),
+        }
+    }
+}
+
+/// `joint_sigma`: one number for every joint, or a list with one per joint.
+#[derive(Clone, Debug, PartialEq)]
+enum JointSigma {
+    Every(f64),
+    Each(Vec<f64>),
+}
+
+impl<'de> Deserialize<'de> for JointSigma {
+    fn deserialize<D: serde::Deserializer<'de>>(
+        deserializer: D,
+    ) -> std::result::Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = JointSigma;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number (the same on every joint) or a list with one per joint")
+            }
+            fn visit_f64<E>(self, v: f64) -> std::result::Result<JointSigma, E> {
+                Ok(JointSigma::Every(v))
+            }
+            fn visit_i64<E>(self, v: i64) -> std::result::Result<JointSigma, E> {
+                Ok(JointSigma::Every(v as f64))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                seq: A,
+            ) -> std::result::Result<JointSigma, A::Error> {
+                Vec::<f64>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
+                    .map(JointSigma::Each)
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
 }
 
 /// A loaded error profile.
@@ -59,7 +111,7 @@ struct ProfileFile {
 struct ArmSpec {
     sigma: Option<Vec<f64>>,
     covariance: Option<Vec<Vec<f64>>>,
-    joint_sigma: Option<Vec<f64>>,
+    joint_sigma: Option<JointSigma>,
 }
 
 impl ErrorProfile {
@@ -90,16 +142,24 @@ impl ErrorProfile {
                         "[world_from_robot]: give `joint_sigma` or a pose `sigma`/`covariance`, not both".into(),
                     ));
                 }
-                if let Some((i, s)) = sigmas
+                let (values, arm) = match sigmas {
+                    JointSigma::Every(s) => (vec![s], ArmError::EveryJoint(s)),
+                    JointSigma::Each(s) => (s.clone(), ArmError::Joints(s)),
+                };
+                if let Some((i, s)) = values
                     .iter()
                     .enumerate()
                     .find(|(_, s)| !s.is_finite() || **s < 0.0)
                 {
+                    let at = match arm {
+                        ArmError::EveryJoint(_) => String::new(),
+                        _ => format!("[{i}]"),
+                    };
                     return Err(bad(format!(
-                        "[world_from_robot]: joint_sigma[{i}] = {s} must be a finite number >= 0"
+                        "[world_from_robot]: joint_sigma{at} = {s} must be a finite number >= 0"
                     )));
                 }
-                ArmError::Joints(sigmas)
+                arm
             }
             None => ArmError::Pose(
                 CovarianceSpec {
@@ -137,6 +197,7 @@ impl ErrorProfile {
         match &mut self.arm {
             ArmError::Pose(c) => *c *= variance,
             ArmError::Joints(s) => s.iter_mut().for_each(|v| *v *= scale),
+            ArmError::EveryJoint(s) => *s *= scale,
         }
     }
 
@@ -160,6 +221,11 @@ impl ErrorProfile {
                     None => Ok(()),
                 }
             }
+            ArmError::EveryJoint(s) if s.is_nan() || *s > MAX_POSE_SIGMA[1] => Err(format!(
+                "{what}: [world_from_robot] joint_sigma = {s:e} exceeds {} rad",
+                MAX_POSE_SIGMA[1]
+            )),
+            ArmError::EveryJoint(_) => Ok(()),
         }
     }
 }
@@ -181,6 +247,29 @@ mod tests {
         for name in ["industrial", "collaborative", "stressed", "quiet_sensor"] {
             let p = ErrorProfile::load(&dir.join(format!("{name}.toml"))).unwrap();
             assert!(!p.description.is_empty(), "{name} documents its sources");
+        }
+    }
+
+    #[test]
+    fn one_joint_sigma_serves_every_joint() {
+        let every =
+            load("[range]\nsigma0 = 0.001\n[world_from_robot]\njoint_sigma = 0.0005\n").unwrap();
+        assert_eq!(every.arm, ArmError::EveryJoint(0.0005));
+        assert_eq!(every.arm.joint_sigmas(7), Some(vec![0.0005; 7]));
+        let each =
+            load("[range]\nsigma0 = 0.001\n[world_from_robot]\njoint_sigma = [1e-4, 2e-4]\n")
+                .unwrap();
+        assert_eq!(each.arm.joint_sigmas(6), Some(vec![1e-4, 2e-4]));
+        for (value, says) in [
+            ("-0.1", "joint_sigma = -0.1 must be a finite number >= 0"),
+            ("\"small\"", "a number (the same on every joint) or a list"),
+        ] {
+            let msg = load(&format!(
+                "[range]\nsigma0 = 0.001\n[world_from_robot]\njoint_sigma = {value}\n"
+            ))
+            .unwrap_err()
+            .to_string();
+            assert!(msg.contains("p.toml") && msg.contains(says), "{msg}");
         }
     }
 

@@ -76,7 +76,8 @@ pub fn draw_arm(
                 believed,
             })
         }
-        ArmError::Joints(sigmas) => {
+        ArmError::Joints(_) | ArmError::EveryJoint(_) => {
+            let sigmas = arm.joint_sigmas(q.len()).unwrap_or_default();
             if sigmas.len() != q.len() {
                 return Err(format!(
                     "joint_sigma has {} values but the arm has {} joints",

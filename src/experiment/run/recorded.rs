@@ -97,7 +97,7 @@ pub fn node_chain(node: &ScanNode, profile: &ErrorProfile) -> Result<NominalChai
 fn arm_covariance(profile: &ErrorProfile) -> Result<Matrix6> {
     match &profile.arm {
         ArmError::Pose(covariance) => Ok(*covariance),
-        ArmError::Joints(_) => Err(Error::input(
+        ArmError::Joints(_) | ArmError::EveryJoint(_) => Err(Error::input(
             &profile.source,
             "[world_from_robot] gives joint_sigma, but a scan graph has no joint angles: \
              give the pose error of the scans as [world_from_robot] sigma or covariance",

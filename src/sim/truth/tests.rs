@@ -82,6 +82,16 @@ fn joint_encoder_draws_match_fk_propagated_covariance() {
     // Γ_rw from joint errors is full, not diagonal.
     assert!(believed.covariance[(0, 1)].abs() > 1e-3 * believed.covariance[(0, 0)]);
     assert_moments(&errors, &believed.covariance, "joint draw");
+    // One sigma for every joint is that sigma on each: the same draws.
+    for k in 0..8 {
+        let draw = |arm: &ArmError| {
+            let mut rng = streams.rng(Stream::Viewpoint(k));
+            draw_arm(arm, &chain, &world_from_base, &q, &mut rng).unwrap()
+        };
+        let (every, each) = (draw(&ArmError::EveryJoint(5e-4)), draw(&arm));
+        assert_eq!(every.truth, each.truth);
+        assert_eq!(every.believed.covariance, each.believed.covariance);
+    }
 }
 
 #[test]
