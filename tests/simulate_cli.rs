@@ -271,6 +271,41 @@ fn a_mesh_far_larger_than_the_workspace_is_named_in_a_note() {
 }
 
 #[test]
+fn an_angle_past_a_full_turn_is_named_in_a_note_as_degrees() {
+    let (code, stderr, _) = broken("scenes/tabletop.toml", |t| {
+        t.replace(
+            "rpy = [1.5707963267948966, 0.0, 0.0]",
+            "rpy = [90.0, 0.0, 0.0]",
+        )
+    });
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stderr.contains("note: object 'bunny' of ")
+            && stderr.contains("rpy = [90, 0, 0] turns more than once")
+            && stderr.contains("write [1.5708, 0.0000, 0.0000]"),
+        "{stderr}"
+    );
+    // Two full turns (4π), so that the viewpoints stay where they were.
+    let (code, stderr, _) = broken("experiments/quickstart.toml", |t| {
+        let (robot, scene) = t.split_at(t.find("[world_from_scene]").unwrap());
+        format!(
+            "{robot}{}",
+            scene.replacen(
+                "rpy = [0.0, 0.0, 0.0]",
+                "rpy = [0.0, 0.0, 12.566370614359172]",
+                1
+            )
+        )
+    });
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stderr.contains("quickstart.toml [world_from_scene]: rpy = [0, 0, 12.566370614359172]"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("[robot]"), "{stderr}");
+}
+
+#[test]
 fn usage_errors_and_help() {
     let out = sigmap(&["simulate"]);
     assert_eq!(out.status.code(), Some(2));

@@ -10,6 +10,7 @@ use std::path::PathBuf;
 pub(crate) fn run(args: ExportArgs) -> Result<()> {
     let experiment =
         Experiment::load_cell_index(&args.experiment, args.cell).map_err(super::cell_flag)?;
+    super::print_notes(experiment.notes(), args.run.quiet);
     let seed = args.run.seed.unwrap_or(experiment.seed());
     let out = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("results")

@@ -13,6 +13,7 @@ pub(crate) fn run(args: GroundTruthArgs) -> Result<()> {
     resolution_arg(args.resolution)?;
     check_octree_path(&args.out)?;
     let scene = Scene::load(&args.scene)?;
+    super::print_notes(scene.notes(), false);
     scene.check_resolution(args.resolution)?;
     scene.check_truth_region(&scene.workspace, args.resolution, "the whole workspace")?;
     let start = Instant::now();

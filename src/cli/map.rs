@@ -118,11 +118,7 @@ fn load_experiment(path: &Path, args: &MapArgs) -> Result<Experiment> {
 /// millimetres, which sweep cell is mapped, and whether the default samples
 /// were left off.
 fn print_notes(args: &MapArgs, experiment: &Experiment) {
-    if !args.run.quiet {
-        for note in super::mesh_unit_notes(experiment) {
-            eprintln!("{note}");
-        }
-    }
+    super::print_notes(experiment.notes(), args.run.quiet);
     if args.cell.is_none() && !experiment.sweep().is_empty() && !args.run.quiet {
         let cells = experiment.cells();
         eprintln!(

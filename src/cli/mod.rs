@@ -412,22 +412,14 @@ pub(crate) fn samples_note(experiment: &crate::experiment::Experiment) -> Option
     })
 }
 
-/// A line for each mesh of `experiment`'s scene that spans far more than
-/// the workspace, asking whether its file is in millimetres.
-pub(crate) fn mesh_unit_notes(experiment: &crate::experiment::Experiment) -> Vec<String> {
-    let scene = experiment.scene();
-    scene
-        .oversized_meshes()
-        .map(|(object, span)| {
-            format!(
-                "note: object '{}' of {} spans {span:.3} m, {:.0} times the workspace's diagonal: \
-                 if its mesh file is in millimetres, give the object `scale = 0.001`",
-                object.name,
-                scene.source.display(),
-                span / scene.workspace.diagonal()
-            )
-        })
-        .collect()
+/// Prints `notes` (the input files' `note: …` lines) on stderr unless
+/// `quiet`.
+pub(crate) fn print_notes(notes: &[String], quiet: bool) {
+    if !quiet {
+        for note in notes {
+            eprintln!("{note}");
+        }
+    }
 }
 
 /// Runs `f` on a rayon pool of `threads` workers (0: one per core).

@@ -29,7 +29,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         }
         if pending > 0 && !args.run.quiet {
             announce_mappers(&bar, experiment);
-            let notes = super::mesh_unit_notes(experiment).into_iter();
+            let notes = experiment.notes().iter().cloned();
             for note in notes.chain(super::samples_note(experiment)) {
                 bar.suspend(|| eprintln!("{note}"));
             }

@@ -32,6 +32,7 @@ pub(crate) fn run(args: ScoreArgs) -> Result<()> {
         (None, Some(path)) => {
             let experiment =
                 Experiment::load_cell_index(path, args.cell).map_err(super::cell_flag)?;
+            super::print_notes(experiment.notes(), args.run.quiet);
             let seed = args.run.seed.unwrap_or(experiment.seed());
             let map = read_octree(&args.map, experiment.map().clamp())
                 .map_err(|e| e.context("the map (first argument): "))?;
@@ -124,6 +125,7 @@ fn against_scene(
         }
     }
     let scene_data = Scene::load(scene)?;
+    super::print_notes(scene_data.notes(), args.run.quiet);
     let scans = args.scans.as_ref().ok_or_else(|| {
         Error::Usage("--scene needs --scans SCANS.graph, the scans the map was built from".into())
     })?;

@@ -13,11 +13,7 @@ pub(crate) fn run(args: SimulateArgs) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| experiment::default_scan_dir(&experiment));
-    if !args.run.quiet {
-        for note in super::mesh_unit_notes(&experiment) {
-            eprintln!("{note}");
-        }
-    }
+    super::print_notes(experiment.notes(), args.run.quiet);
     let bar = progress_bar(experiment.viewpoints().len(), "viewpoints", args.run.quiet);
     let start = Instant::now();
     let run = with_threads(args.run.threads, || {

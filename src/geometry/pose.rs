@@ -35,6 +35,24 @@ impl Pose {
         }
     }
 
+    /// The note to print when an angle of `rpy` is more than a full turn
+    /// (2π): degrees written where radians are read, most likely. `what`
+    /// names where the pose was written.
+    pub fn degrees_note(&self, what: &str) -> Option<String> {
+        let [roll, pitch, yaw] = [self.rpy.x, self.rpy.y, self.rpy.z];
+        self.rpy
+            .iter()
+            .any(|a| a.abs() > std::f64::consts::TAU)
+            .then(|| {
+                let radians = [roll, pitch, yaw].map(|a| format!("{:.4}", a.to_radians()));
+                format!(
+                    "note: {what} rpy = [{roll}, {pitch}, {yaw}] turns more than once: angles \
+                     are radians; if these are degrees, write [{}]",
+                    radians.join(", ")
+                )
+            })
+    }
+
     /// The parameter vector `(x, y, z, roll, pitch, yaw)`.
     pub fn params(&self) -> Vector6 {
         Vector6::new(

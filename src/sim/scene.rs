@@ -94,6 +94,9 @@ pub struct Scene {
     pub workspace: Bounds,
     /// Every file the scene was read from: the scene file, then its meshes.
     pub inputs: Vec<PathBuf>,
+    /// What the user should know of the file that is not an error
+    /// ([`Scene::notes`]).
+    notes: Vec<String>,
     objects: Vec<SceneObject>,
     bvh: Bvh,
 }
@@ -355,6 +358,7 @@ impl Scene {
         }
         let mut objects = Vec::with_capacity(file.objects.len());
         let mut inputs = vec![path.to_path_buf()];
+        let mut notes = Vec::new();
         for (index, spec) in file.objects.iter().enumerate() {
             if let (Some(mesh), "mesh") = (&spec.file, spec.shape.as_str()) {
                 inputs.push(path.parent().unwrap_or(Path::new(".")).join(mesh));
@@ -368,6 +372,8 @@ impl Scene {
             if !placement.is_finite() {
                 return Err(bad(format!("{label}xyz/rpy must be finite")));
             }
+            notes
+                .extend(placement.degrees_note(&format!("object '{name}' of {}:", path.display())));
             let (shape, kind, triangles, local) = spec.build(path, &label)?;
             let pose = to_parry_pose(&placement.to_isometry()) * local;
             let aabb = shape.compute_aabb(&pose);
@@ -394,15 +400,37 @@ impl Scene {
             .map(|o| o.shape.compute_aabb(&o.pose))
             .collect();
         let bvh = Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves);
-        Ok(Self {
+        let mut scene = Self {
             name: file.name.unwrap_or_else(|| crate::files::stem(path)),
             source: path.to_path_buf(),
             description: file.description,
             workspace,
             inputs,
+            notes,
             objects,
             bvh,
-        })
+        };
+        let oversized: Vec<String> = scene
+            .oversized_meshes()
+            .map(|(object, span)| {
+                format!(
+                    "note: object '{}' of {} spans {span:.3} m, {:.0} times the workspace's \
+                     diagonal: if its mesh file is in millimetres, give the object `scale = 0.001`",
+                    object.name,
+                    path.display(),
+                    span / scene.workspace.diagonal()
+                )
+            })
+            .collect();
+        scene.notes.extend(oversized);
+        Ok(scene)
+    }
+
+    /// What the user should know of the scene file that is not an error: an
+    /// object turned by more than a full turn (degrees for radians), a mesh
+    /// far larger than the workspace (millimetres for metres).
+    pub fn notes(&self) -> &[String] {
+        &self.notes
     }
 
     /// The solids.

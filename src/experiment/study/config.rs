@@ -179,6 +179,9 @@ pub struct Experiment {
     sweep: Vec<SweepAxis>,
     /// The sweep values this experiment was loaded with (empty: the base).
     cell: Vec<(String, SweepValue)>,
+    /// What the user should know of its files that is not an error
+    /// ([`Experiment::notes`]).
+    notes: Vec<String>,
 }
 
 impl Experiment {

@@ -82,6 +82,13 @@ impl Experiment {
         std::iter::once(&self.reference).chain(&self.also_paired)
     }
 
+    /// What the user should know of the experiment's files that is not an
+    /// error, one line each (`note: …`): the scene's notes, and a pose of
+    /// `[robot]` or `[world_from_scene]` turned by more than a full turn.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
+    }
+
     /// The workcell scene.
     pub fn scene(&self) -> &Scene {
         &self.scene

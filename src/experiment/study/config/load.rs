@@ -378,6 +378,14 @@ impl Experiment {
         check_sweep_axes(&file.sweeps).map_err(&bad)?;
         let robot = Robot::load(&referred(path, "[robot] urdf", &file.robot.urdf)?)?;
         let mount = Mount::of(&robot, &file.robot, &file, &profile, path)?;
+        let mut notes = scene.notes().to_vec();
+        let written = [
+            ("[robot]", Pose::new(file.robot.xyz, file.robot.rpy)),
+            ("[world_from_scene]", mount.world_from_scene),
+        ];
+        for (table, pose) in written {
+            notes.extend(pose.degrees_note(&format!("{} {table}:", path.display())));
+        }
         let resolution = overrides.resolution.unwrap_or(file.resolution);
         if !crate::mapping::octree::RESOLUTIONS.contains(&resolution) {
             return Err(bad(format!(
@@ -439,6 +447,7 @@ impl Experiment {
             viewpoints: Vec::new(),
             sweep: file.sweeps,
             cell: cell.to_vec(),
+            notes,
         };
         for (index, spec) in file.viewpoints.iter().enumerate() {
             let viewpoint = experiment
