@@ -94,6 +94,11 @@ fn ply_cloud_matches_the_csv_points() {
 /// Copies the quickstart inputs into a temporary tree, applies `edit` to one
 /// of them, runs `simulate`, and returns (exit code, stderr, out dir exists).
 fn broken(file: &str, edit: impl Fn(String) -> String) -> (i32, String, bool) {
+    edited(&[(file, &edit)])
+}
+
+/// [`broken`] with several files edited.
+fn edited(edits: &[(&str, &dyn Fn(String) -> String)]) -> (i32, String, bool) {
     let tmp = tempfile::tempdir().unwrap();
     let r = root();
     for dir in ["experiments/profiles", "scenes/meshes", "robots"] {
@@ -107,7 +112,10 @@ fn broken(file: &str, edit: impl Fn(String) -> String) -> (i32, String, bool) {
         "robots/ur5.urdf",
     ] {
         let text = std::fs::read_to_string(r.join(f)).unwrap();
-        let text = if f == file { edit(text) } else { text };
+        let text = match edits.iter().find(|(file, _)| *file == f) {
+            Some((_, edit)) => edit(text),
+            None => text,
+        };
         std::fs::write(tmp.path().join(f), text).unwrap();
     }
     let out_dir = tmp.path().join("out");
@@ -303,6 +311,50 @@ fn an_angle_past_a_full_turn_is_named_in_a_note_as_degrees() {
         "{stderr}"
     );
     assert!(!stderr.contains("[robot]"), "{stderr}");
+}
+
+#[test]
+fn a_seven_joint_arm_runs_with_one_joint_sigma_for_all() {
+    // The UR5 with a seventh joint, a revolute one between its last wrist
+    // link and the flange, and a profile that gives one encoder error.
+    let seventh = |t: String| {
+        t.replacen(
+            r#"<joint name="wrist_3_link-tool0_fixed_joint" type="fixed">"#,
+            r#"<joint name="flange_joint" type="revolute"><axis xyz="0 0 1"/><limit lower="-3.1" upper="3.1" effort="1" velocity="1"/>"#,
+            1,
+        )
+    };
+    let joints = |t: String| {
+        t.replace(
+            "joints = [0.0, -1.2, 1.6, -1.97, -1.5708, 0.0]",
+            "joints = [0.0, -1.2, 1.6, -1.97, -1.5708, 0.0, 0.3]",
+        )
+    };
+    let one_sigma = |t: String| {
+        let at = t.find("joint_sigma = ").unwrap();
+        let end = at + t[at..].find('\n').unwrap();
+        format!("{}joint_sigma = 0.00052{}", &t[..at], &t[end..])
+    };
+    let (code, stderr, wrote) = edited(&[
+        ("robots/ur5.urdf", &seventh),
+        ("experiments/quickstart.toml", &joints),
+        ("experiments/profiles/collaborative.toml", &one_sigma),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        wrote && stderr.contains("simulated 6 viewpoints"),
+        "{stderr}"
+    );
+    // The six-value list the shipped profile gives is refused for it.
+    let (code, stderr, _) = edited(&[
+        ("robots/ur5.urdf", &seventh),
+        ("experiments/quickstart.toml", &joints),
+    ]);
+    assert_eq!(code, 2, "{stderr}");
+    assert!(
+        stderr.contains("joint_sigma has 6 values, the arm 'ur5' has 7 joints"),
+        "{stderr}"
+    );
 }
 
 #[test]
