@@ -304,7 +304,7 @@ fn workspaces_too_large_to_score_are_refused_before_any_work() {
             d.join("far").to_str().unwrap(),
         ],
         "far.toml",
-        "the observable mask sigmap scores over takes at most 5e8",
+        "the observable mask sigmap scores over walks at most 5e9",
     );
 }
 

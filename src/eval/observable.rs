@@ -19,22 +19,35 @@ pub struct SeenRay {
     pub hit: bool,
 }
 
-/// The most cell steps the rays of one observable mask may take (their
-/// total length over the resolution): the mask holds at most that many
-/// cells, 8 bytes each in its hash set (5 × 10⁸: about 4.5 GB at worst).
-pub const MAX_MASK_STEPS: f64 = 5e8;
+/// The most cell steps the rays of one observable mask may walk (their
+/// total length over the resolution): its time, a few seconds a 10⁹ steps.
+pub const MAX_MASK_STEPS: f64 = 5e9;
 
-/// Refuses rays whose total length at `resolution` passes
-/// [`MAX_MASK_STEPS`]: `steps` is that total, `what` names the rays.
-pub fn check_mask_steps(steps: f64, resolution: f64, what: &str) -> Result<(), String> {
-    if steps <= MAX_MASK_STEPS {
-        return Ok(());
+/// The most cells one observable mask may hold, 8 bytes each in its hash
+/// set (5 × 10⁸: about 4.5 GB at worst).
+pub const MAX_MASK_CELLS: f64 = 5e8;
+
+/// Refuses an observable mask whose rays walk more than [`MAX_MASK_STEPS`]
+/// cell steps (`steps`: their total length over `resolution`) or may reach
+/// more than [`MAX_MASK_CELLS`] cells (`cells`: a bound on the distinct
+/// cells they cross, as the boxes they stay in; `steps` when nothing
+/// tighter is known). `what` names the rays.
+pub fn check_mask_cost(steps: f64, cells: f64, resolution: f64, what: &str) -> Result<(), String> {
+    let advice = "use a coarser resolution, fewer beams or a shorter max_range";
+    if steps.is_nan() || steps > MAX_MASK_STEPS {
+        return Err(format!(
+            "{what} cross {steps:.2e} cells at {resolution} m; the observable mask sigmap \
+             scores over walks at most {MAX_MASK_STEPS:.0e} ({advice})"
+        ));
     }
-    Err(format!(
-        "{what} cross {steps:.2e} cells at {resolution} m; the observable mask sigmap scores \
-         over takes at most {MAX_MASK_STEPS:.0e} (use a coarser resolution, fewer beams or a \
-         shorter max_range)"
-    ))
+    let cells = cells.min(steps);
+    if cells.is_nan() || cells > MAX_MASK_CELLS {
+        return Err(format!(
+            "{what} may reach {cells:.2e} cells at {resolution} m; the observable mask sigmap \
+             scores over holds at most {MAX_MASK_CELLS:.0e} ({advice})"
+        ));
+    }
+    Ok(())
 }
 
 /// Morton codes of the cells (at `resolution`) that a ray traversed from its
@@ -91,4 +104,22 @@ pub fn observable_cells<'a>(
         })
     });
     observable_along(rays, resolution)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_mask_is_refused_for_its_walk_or_its_cells_not_for_crossing_cells_again() {
+        // A dense raster: 1.3e9 steps that stay in 3.8e8 cells.
+        assert!(check_mask_cost(1.3e9, 3.8e8, 0.01, "rays").is_ok());
+        // Fewer steps than the cubes hold: the steps bound the cells.
+        assert!(check_mask_cost(4e8, 1e12, 0.01, "rays").is_ok());
+        let walk = check_mask_cost(1e10, 1e8, 0.01, "rays").unwrap_err();
+        assert!(walk.contains("rays cross 1.00e10 cells") && walk.contains("walks at most 5e9"));
+        let cells = check_mask_cost(1e9, 6e8, 0.01, "rays").unwrap_err();
+        assert!(cells.contains("may reach 6.00e8 cells") && cells.contains("holds at most 5e8"));
+        assert!(check_mask_cost(f64::NAN, 1.0, 0.01, "rays").is_err());
+    }
 }

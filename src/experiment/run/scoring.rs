@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::{voxelise_within, KeyBox};
-use crate::eval::observable::{check_mask_steps, observable_along, SeenRay};
+use crate::eval::observable::{check_mask_cost, observable_along, SeenRay};
 use crate::eval::scores::{score_map, wrong_cells, WrongCell};
 use crate::experiment::run::runner::{observable, run_truth};
 use crate::experiment::study::metrics::{Measured, RunRow};
@@ -164,8 +164,13 @@ pub fn score_against_scene(
     let steps: f64 = recorded_rays(nodes, max_range)
         .map(|ray| (ray.end - ray.origin).norm() / map.resolution())
         .sum();
-    check_mask_steps(steps, map.resolution(), "the recorded rays (--scans)")
-        .map_err(Error::Usage)?;
+    check_mask_cost(
+        steps,
+        steps,
+        map.resolution(),
+        "the recorded rays (--scans)",
+    )
+    .map_err(Error::Usage)?;
     let observable = observable_along(recorded_rays(nodes, max_range), map.resolution());
     let region = KeyBox::spanning(observable.iter().copied());
     let truth = voxelise_within(scene, map.resolution(), map_from_scene, &region);

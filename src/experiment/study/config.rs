@@ -277,8 +277,13 @@ impl Experiment {
     pub fn check_truth_cost(&self) -> crate::error::Result<()> {
         use crate::geometry::{Point3, Vector3};
         let beams = (self.scanner.directions().len() * self.viewpoints.len()) as f64;
-        crate::eval::observable::check_mask_steps(
+        let reach = self.scanner.max_range + self.resolution;
+        // A viewpoint's rays stay in the cube of `reach` around its sensor:
+        // a dense raster crosses the same cells many times over.
+        let cube = (2.0 * reach / self.resolution + 1.0).powi(3);
+        crate::eval::observable::check_mask_cost(
             beams * self.scanner.max_range / self.resolution,
+            cube * self.viewpoints.len() as f64,
             self.resolution,
             &format!(
                 "{beams:.0} beams out to max_range = {} m",
@@ -286,7 +291,6 @@ impl Experiment {
             ),
         )
         .map_err(|e| Error::input(&self.source, e))?;
-        let reach = self.scanner.max_range + self.resolution;
         let mut seen = crate::sim::scene::Bounds {
             min: Point3::from(Vector3::repeat(f64::INFINITY)),
             max: Point3::from(Vector3::repeat(f64::NEG_INFINITY)),

@@ -190,6 +190,34 @@ fn samples_left_to_the_default_stay_off_for_a_raster_too_dense_to_sample() {
 }
 
 #[test]
+fn a_dense_raster_is_not_refused_for_its_observable_mask() {
+    // 1001 x 801 beams at 0.05° from six viewpoints, out to 2 m at 1 cm:
+    // 9.6e8 steps, but their cells lie in the six 4 m cubes (3.8e8 cells).
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("dense.toml");
+    let text = crate::experiment::portable_quickstart()
+        .replace("horizontal_step_deg = 0.5", "horizontal_step_deg = 0.05")
+        .replace("vertical_step_deg = 0.5", "vertical_step_deg = 0.05");
+    std::fs::write(&path, text).unwrap();
+    let experiment = Experiment::load(&path).unwrap();
+    experiment.check_truth_cost().unwrap();
+    // At 5 mm the cubes hold 3.1e9 cells and the steps are 1.9e9: refused.
+    std::fs::write(
+        &path,
+        std::fs::read_to_string(&path)
+            .unwrap()
+            .replace("resolution = 0.01", "resolution = 0.005"),
+    )
+    .unwrap();
+    let error = Experiment::load(&path)
+        .unwrap()
+        .check_truth_cost()
+        .unwrap_err()
+        .to_string();
+    assert!(error.contains("holds at most 5e8"), "{error}");
+}
+
+#[test]
 fn sweep_cells_and_overrides() {
     let path = Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
