@@ -114,9 +114,9 @@ fn load_experiment(path: &Path, args: &MapArgs) -> Result<Experiment> {
     })
 }
 
-/// What the user should know before the run: a mesh that may be in
-/// millimetres, which sweep cell is mapped, and whether the default samples
-/// were left off.
+/// What the user should know before the run: the input files' notes,
+/// which sweep cell is mapped, and whether the default samples were left
+/// off.
 fn print_notes(args: &MapArgs, experiment: &Experiment) {
     super::print_notes(experiment.notes(), args.run.quiet);
     if args.cell.is_none() && !experiment.sweep().is_empty() && !args.run.quiet {

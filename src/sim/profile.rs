@@ -33,6 +33,21 @@ impl ArmError {
             ArmError::EveryJoint(sigma) => Some(vec![*sigma; joints]),
         }
     }
+
+    /// The first joint sigma, as the file writes it, for which `bad` holds,
+    /// with the field that holds it (`joint_sigma[i]`, or `joint_sigma` for
+    /// one number); `None` for a pose error.
+    fn find_joint_sigma(&self, bad: impl Fn(f64) -> bool) -> Option<(String, f64)> {
+        match self {
+            ArmError::Pose(_) => None,
+            ArmError::Joints(sigmas) => sigmas
+                .iter()
+                .enumerate()
+                .find(|(_, s)| bad(**s))
+                .map(|(i, s)| (format!("joint_sigma[{i}]"), *s)),
+            ArmError::EveryJoint(s) => bad(*s).then(|| ("joint_sigma".into(), *s)),
+        }
+    }
 }
 
 /// `joint_sigma`: one number for every joint, or a list with one per joint.
@@ -142,21 +157,13 @@ impl ErrorProfile {
                         "[world_from_robot]: give `joint_sigma` or a pose `sigma`/`covariance`, not both".into(),
                     ));
                 }
-                let (values, arm) = match sigmas {
-                    JointSigma::Every(s) => (vec![s], ArmError::EveryJoint(s)),
-                    JointSigma::Each(s) => (s.clone(), ArmError::Joints(s)),
+                let arm = match sigmas {
+                    JointSigma::Every(s) => ArmError::EveryJoint(s),
+                    JointSigma::Each(s) => ArmError::Joints(s),
                 };
-                if let Some((i, s)) = values
-                    .iter()
-                    .enumerate()
-                    .find(|(_, s)| !s.is_finite() || **s < 0.0)
-                {
-                    let at = match arm {
-                        ArmError::EveryJoint(_) => String::new(),
-                        _ => format!("[{i}]"),
-                    };
+                if let Some((field, s)) = arm.find_joint_sigma(|s| !s.is_finite() || s < 0.0) {
                     return Err(bad(format!(
-                        "[world_from_robot]: joint_sigma{at} = {s} must be a finite number >= 0"
+                        "[world_from_robot]: {field} = {s} must be a finite number >= 0"
                     )));
                 }
                 arm
@@ -210,22 +217,18 @@ impl ErrorProfile {
         };
         pose("world_from_scene", &self.world_from_scene)?;
         pose("robot_from_camera", &self.robot_from_camera)?;
-        match &self.arm {
-            ArmError::Pose(c) => pose("world_from_robot", c),
-            ArmError::Joints(s) => {
-                match s.iter().position(|v| v.is_nan() || *v > MAX_POSE_SIGMA[1]) {
-                    Some(i) => Err(format!(
-                        "{what}: [world_from_robot] joint_sigma[{i}] = {:e} exceeds {} rad",
-                        s[i], MAX_POSE_SIGMA[1]
-                    )),
-                    None => Ok(()),
-                }
-            }
-            ArmError::EveryJoint(s) if s.is_nan() || *s > MAX_POSE_SIGMA[1] => Err(format!(
-                "{what}: [world_from_robot] joint_sigma = {s:e} exceeds {} rad",
+        if let ArmError::Pose(c) = &self.arm {
+            return pose("world_from_robot", c);
+        }
+        match self
+            .arm
+            .find_joint_sigma(|s| s.is_nan() || s > MAX_POSE_SIGMA[1])
+        {
+            Some((field, s)) => Err(format!(
+                "{what}: [world_from_robot] {field} = {s:e} exceeds {} rad",
                 MAX_POSE_SIGMA[1]
             )),
-            ArmError::EveryJoint(_) => Ok(()),
+            None => Ok(()),
         }
     }
 }

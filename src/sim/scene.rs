@@ -78,9 +78,12 @@ pub struct SceneObject {
 
 /// How many times the workspace's diagonal a mesh object may span before
 /// sigmap asks whether its file is in millimetres
-/// ([`Scene::oversized_meshes`]): a floor or a wall may be a few times the
+/// ([`Scene::oversized_mesh`]): a floor or a wall may be a few times the
 /// workspace, a CAD part in millimetres is a thousand times itself.
 pub const MESH_SPAN_RATIO: f64 = 20.0;
+
+/// What to do about a mesh [`Scene::oversized_mesh`] names.
+pub const MILLIMETRES: &str = "if its mesh file is in millimetres, give the object `scale = 0.001`";
 
 /// A loaded scene: solids, a BVH over them, and the workspace to map.
 pub struct Scene {
@@ -410,16 +413,16 @@ impl Scene {
             objects,
             bvh,
         };
-        let oversized: Vec<String> = scene
-            .oversized_meshes()
-            .map(|(object, span)| {
-                format!(
+        let oversized: Vec<String> = (0..scene.objects.len())
+            .filter_map(|index| {
+                let span = scene.oversized_mesh(index)?;
+                Some(format!(
                     "note: object '{}' of {} spans {span:.3} m, {:.0} times the workspace's \
-                     diagonal: if its mesh file is in millimetres, give the object `scale = 0.001`",
-                    object.name,
+                     diagonal: {MILLIMETRES}",
+                    scene.objects[index].name,
                     path.display(),
                     span / scene.workspace.diagonal()
-                )
+                ))
             })
             .collect();
         scene.notes.extend(oversized);
@@ -438,15 +441,14 @@ impl Scene {
         &self.objects
     }
 
-    /// The mesh objects whose bounding box's diagonal is more than
-    /// [`MESH_SPAN_RATIO`] times the workspace's, with that diagonal (m): a
-    /// mesh written in millimetres and read as metres, most likely.
-    pub fn oversized_meshes(&self) -> impl Iterator<Item = (&SceneObject, f64)> {
-        let workspace = self.workspace.diagonal();
-        self.objects.iter().filter_map(move |object| {
-            let span = object.bounds.diagonal();
-            (object.kind == "mesh" && span > MESH_SPAN_RATIO * workspace).then_some((object, span))
-        })
+    /// The diagonal (m) of object `index`'s bounding box if it is a mesh
+    /// more than [`MESH_SPAN_RATIO`] times the workspace's diagonal across:
+    /// a mesh written in millimetres and read as metres, most likely.
+    pub fn oversized_mesh(&self, index: usize) -> Option<f64> {
+        let object = self.objects.get(index)?;
+        let span = object.bounds.diagonal();
+        (object.kind == "mesh" && span > MESH_SPAN_RATIO * self.workspace.diagonal())
+            .then_some(span)
     }
 
     /// Total triangle count of the meshes.

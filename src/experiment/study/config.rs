@@ -391,12 +391,11 @@ impl Experiment {
             let name = &self.scene.objects()[object].name;
             let millimetres = self
                 .scene
-                .oversized_meshes()
-                .find(|(oversized, _)| &oversized.name == name)
-                .map_or(String::new(), |(_, span)| {
+                .oversized_mesh(object)
+                .map_or(String::new(), |span| {
                     format!(
-                        " (a mesh {span:.3} m across, far larger than the workspace: if its file \
-                         is in millimetres, give the object `scale = 0.001`)"
+                        " (a mesh {span:.3} m across, far larger than the workspace: {})",
+                        crate::sim::scene::MILLIMETRES
                     )
                 });
             return Err(bad(format!(

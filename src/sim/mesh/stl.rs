@@ -26,28 +26,22 @@ pub(super) fn load(path: &Path) -> Result<Mesh> {
     let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let size = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut preamble = [0u8; PREAMBLE as usize];
-    let count = match file.read_exact(&mut preamble) {
-        Ok(()) => Some(u32::from_le_bytes([
-            preamble[80],
-            preamble[81],
-            preamble[82],
-            preamble[83],
-        ])),
-        Err(_) => None,
-    };
+    let count = file
+        .read_exact(&mut preamble)
+        .ok()
+        .map(|()| u32::from_le_bytes([preamble[80], preamble[81], preamble[82], preamble[83]]));
     file.rewind().map_err(|e| Error::io(path, e))?;
     let ascii_word = preamble.starts_with(b"solid");
-    let stl = match count.map(|n| PREAMBLE + TRIANGLE * u64::from(n)) {
-        Some(binary_size) if binary_size == size => {
-            stl_io::read_stl(&mut BinaryHeader { file, at: 0 })
-        }
-        Some(binary_size) if !ascii_word && binary_size > size => {
+    let binary_size = |n: u32| PREAMBLE + TRIANGLE * u64::from(n);
+    let stl = match count {
+        Some(n) if binary_size(n) == size => stl_io::read_stl(&mut BinaryHeader { file, at: 0 }),
+        Some(n) if !ascii_word && binary_size(n) > size => {
             return Err(Error::input(
                 path,
                 format!(
-                    "binary STL whose header counts {} triangles ({binary_size} bytes), but the \
-                     file has {size} bytes: it is cut short or its count is wrong",
-                    count.unwrap_or_default()
+                    "binary STL whose header counts {n} triangles ({} bytes), but the file has \
+                     {size} bytes: it is cut short or its count is wrong",
+                    binary_size(n)
                 ),
             ));
         }
