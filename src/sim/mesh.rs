@@ -1,4 +1,5 @@
-//! Triangle meshes from OBJ and STL files, checked to be closed and outward.
+//! Triangle meshes from OBJ, STL and PLY files, checked to be closed and
+//! outward.
 
 use crate::error::{Error, Result};
 use crate::geometry::Vector3;
@@ -18,7 +19,8 @@ pub struct Mesh {
 pub const MAX_MESH_BYTES: u64 = 512 << 20;
 
 impl Mesh {
-    /// Reads an OBJ (`.obj`) or STL (`.stl`, ASCII or binary) file.
+    /// Reads an OBJ (`.obj`), STL (`.stl`, ASCII or binary) or PLY (`.ply`,
+    /// ASCII or binary) file.
     pub fn load(path: &Path) -> Result<Self> {
         let ext = path
             .extension()
@@ -31,10 +33,11 @@ impl Mesh {
         let mesh = match ext.as_deref() {
             Some("obj") => Self::load_obj(path)?.welded(),
             Some("stl") => stl::load(path)?,
+            Some("ply") => ply::load(path)?.welded(),
             _ => {
                 return Err(Error::input(
                     path,
-                    "unknown mesh format: use an .obj or .stl file",
+                    "unknown mesh format: use an .obj, .stl or .ply file",
                 ))
             }
         };
@@ -183,6 +186,7 @@ impl Mesh {
     }
 }
 
+mod ply;
 mod stl;
 
 #[cfg(test)]
@@ -305,11 +309,11 @@ mod tests {
         let bad = dir.path().join("bad.obj");
         std::fs::write(&bad, "v 0 0 0\nf 1 2 3\n").unwrap();
         assert!(Mesh::load(&bad).is_err());
-        let ply = dir.path().join("x.ply");
-        std::fs::write(&ply, "ply").unwrap();
-        assert!(Mesh::load(&ply)
+        let collada = dir.path().join("x.dae");
+        std::fs::write(&collada, "<COLLADA/>").unwrap();
+        assert!(Mesh::load(&collada)
             .unwrap_err()
             .to_string()
-            .contains(".obj or .stl"));
+            .contains(".obj, .stl or .ply"));
     }
 }

@@ -234,7 +234,7 @@ impl ObjectSpec {
                 self.unused(&["file", "scale"]).map_err(bad)?;
                 let file = self.file.as_ref().ok_or_else(|| {
                     bad(
-                        "a mesh needs `file` (an .obj or .stl path relative to the scene file)"
+                        "a mesh needs `file` (an .obj, .stl or .ply path relative to the scene file)"
                             .into(),
                     )
                 })?;
