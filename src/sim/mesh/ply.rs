@@ -24,8 +24,8 @@ use ply_rs::ply::{
 use std::io::BufReader;
 use std::path::Path;
 
-/// Most faces or vertices read from one file (a few hundred MB of polygons,
-/// as [`super::MAX_MESH_BYTES`] allows an STL file).
+/// Most vertices, faces or triangles read from one file (a few hundred MB
+/// of polygons, as [`super::MAX_MESH_BYTES`] allows an STL file).
 pub(super) const MAX_PLY_ELEMENTS: usize = 10_000_000;
 
 /// A `vertex` element's position; a coordinate not given stays NaN.
@@ -136,7 +136,7 @@ fn least_bytes(element: &ElementDef, encoding: &Encoding) -> u64 {
 /// Checks the header: a `vertex` element with `x`, `y`, `z`, a `face`
 /// element with its corners, and no count beyond the limit or the file
 /// (the elements' least bytes added up in the file's order).
-fn check_header(header: &Header, size: u64) -> std::result::Result<(), String> {
+fn check_header(header: &Header, size: u64, limit: usize) -> std::result::Result<(), String> {
     let element = |name: &str| header.elements.get(name);
     let vertex = element("vertex").ok_or("the PLY file has no `vertex` element")?;
     for axis in ["x", "y", "z"] {
@@ -156,9 +156,9 @@ fn check_header(header: &Header, size: u64) -> std::result::Result<(), String> {
     }
     let mut least = 0;
     for element in header.elements.values() {
-        if element.count > MAX_PLY_ELEMENTS {
+        if element.count > limit {
             return Err(format!(
-                "its header counts {} elements `{}`; sigmap reads at most {MAX_PLY_ELEMENTS} \
+                "its header counts {} elements `{}`; sigmap reads at most {limit} \
                  (simplify the mesh)",
                 element.count, element.name
             ));
@@ -198,6 +198,11 @@ fn unreadable(part: &str, e: &std::io::Error) -> String {
 
 /// Reads a PLY mesh.
 pub(super) fn load(path: &Path) -> Result<Mesh> {
+    load_at_most(path, MAX_PLY_ELEMENTS)
+}
+
+/// [`load`] with at most `limit` vertices, faces and triangles.
+fn load_at_most(path: &Path, limit: usize) -> Result<Mesh> {
     let bad = |what: String| Error::input(path, what);
     let malformed = |part: &str| {
         let part = part.to_owned();
@@ -209,7 +214,7 @@ pub(super) fn load(path: &Path) -> Result<Mesh> {
     let header = Parser::<Skipped>::new()
         .read_header(&mut reader)
         .map_err(malformed("header"))?;
-    check_header(&header, size).map_err(bad)?;
+    check_header(&header, size, limit).map_err(bad)?;
     let mut mesh = Mesh::default();
     for element in header.elements.values() {
         match element.name.as_str() {
@@ -233,6 +238,12 @@ pub(super) fn load(path: &Path) -> Result<Mesh> {
                         return Err(bad(format!(
                             "face {k} has {} corners; a face needs at least 3",
                             corners.len()
+                        )));
+                    }
+                    if mesh.triangles.len() + corners.len() - 2 > limit {
+                        return Err(bad(format!(
+                            "its faces make more than {limit} triangles \
+                             (simplify the mesh)"
                         )));
                     }
                     mesh.triangles.extend(

@@ -208,3 +208,16 @@ fn a_ply_with_a_copy_of_each_corner_per_face_is_welded() {
     assert_eq!(mesh.vertices.len(), 8);
     mesh.check_closed().unwrap();
 }
+
+/// Polygons are counted as the triangles they make: a file within the
+/// limit of faces whose fans pass the limit of triangles is refused.
+#[test]
+fn the_triangles_of_large_polygons_are_counted_against_the_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(&dir, "quads.ply", ascii_cube().as_bytes());
+    assert_eq!(load_at_most(&path, 12).unwrap().triangles.len(), 12);
+    let message = load_at_most(&path, 11).unwrap_err().to_string();
+    assert!(message.contains("more than 11 triangles"), "{message}");
+    let message = load_at_most(&path, 7).unwrap_err().to_string();
+    assert!(message.contains("counts 8 elements `vertex`"), "{message}");
+}
