@@ -250,9 +250,8 @@ impl ObjectSpec {
                     )));
                 }
                 let path = scene.parent().unwrap_or(Path::new(".")).join(file);
-                let mesh = Mesh::load(&path)
-                    .map_err(|e| e.context(format!("{label}(from {}) ", scene.display())))?
-                    .scaled(scale);
+                let in_scene = |e: Error| e.context(format!("{label}(from {}) ", scene.display()));
+                let mesh = Mesh::load(&path).map_err(in_scene)?.scaled(scale);
                 // A workcell lies within the octree's reach at its coarsest
                 // resolution; beyond, the geometry is not a workcell's.
                 let far = mesh
@@ -268,14 +267,15 @@ impl ObjectSpec {
                         MAX_MESH_REACH / 1000.0
                     )));
                 }
-                mesh.check_closed().map_err(|e| Error::input(&path, e))?;
+                let input = |what: String| in_scene(Error::input(&path, what));
+                mesh.check_closed().map_err(input)?;
                 let n = mesh.triangles.len();
                 let vertices = mesh.vertices.iter().map(to_parry).collect();
                 let mut trimesh = TriMesh::new(vertices, mesh.triangles)
-                    .map_err(|e| Error::input(&path, format!("cannot build the mesh: {e:?}")))?;
+                    .map_err(|e| input(format!("cannot build the mesh: {e:?}")))?;
                 trimesh
                     .set_flags(TriMeshFlags::ORIENTED | TriMeshFlags::HALF_EDGE_TOPOLOGY)
-                    .map_err(|e| Error::input(&path, format!("bad mesh topology: {e:?}")))?;
+                    .map_err(|e| input(format!("bad mesh topology: {e:?}")))?;
                 Ok((SharedShape::new(trimesh), "mesh", n, local))
             }
             other => Err(bad(format!(

@@ -128,7 +128,14 @@ fn bad_scene_inputs_are_named() {
         "[[object]]\nshape = \"mesh\"\nfile = \"open.obj\"\n",
     );
     let msg = Scene::load(&path).err().unwrap().to_string();
-    assert!(msg.contains("open.obj") && msg.contains("open"), "{msg}");
+    // The object and its scene are named, as for a file that cannot be read.
+    assert!(
+        msg.contains("open.obj")
+            && msg.contains("the mesh is open")
+            && msg.contains("object 'mesh #0'")
+            && msg.contains("scene.toml"),
+        "{msg}"
+    );
 }
 
 #[test]
