@@ -7,7 +7,9 @@
 //! the first line takes such a file for ASCII whenever the bytes up to its
 //! first newline are text (a newline in the header, or a count whose low
 //! byte is 10). A file of exactly `84 + 50 n` bytes, `n` its count, is read
-//! as binary whatever its header says.
+//! as binary whatever its header says; a longer one (an exporter's trailing
+//! bytes) too, unless its first line is followed by `facet` or `endsolid`
+//! as an ASCII file's is.
 
 use super::Mesh;
 use crate::error::{Error, Result};
@@ -21,21 +23,48 @@ const PREAMBLE: u64 = 84;
 /// Bytes of one binary triangle: normal, three vertices, attribute count.
 const TRIANGLE: u64 = 50;
 
+/// Bytes read to tell an ASCII file: its first line and the next word.
+const PROBE: u64 = 1024;
+
+/// Whether a file that begins with `probe` is ASCII STL: `solid`, then on
+/// the next line `facet` or `endsolid` (case aside). A binary header that
+/// begins with `solid` is followed by a count and floats instead. A first
+/// line longer than the probe leaves it to `stl_io` (ASCII if it parses).
+fn is_ascii(probe: &[u8]) -> bool {
+    if !probe.starts_with(b"solid") {
+        return false;
+    }
+    let Some(newline) = probe.iter().position(|&b| b == b'\n') else {
+        return true;
+    };
+    let next = probe[newline..].trim_ascii_start();
+    let starts = |word: &[u8]| {
+        next.get(..word.len())
+            .is_some_and(|w| w.eq_ignore_ascii_case(word))
+    };
+    starts(b"facet") || starts(b"endsolid")
+}
+
 /// Reads an ASCII or binary STL file.
 pub(super) fn load(path: &Path) -> Result<Mesh> {
     let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let size = file.metadata().map_err(|e| Error::io(path, e))?.len();
-    let mut preamble = [0u8; PREAMBLE as usize];
-    let count = file
-        .read_exact(&mut preamble)
-        .ok()
-        .map(|()| u32::from_le_bytes([preamble[80], preamble[81], preamble[82], preamble[83]]));
+    let mut probe = Vec::with_capacity(PROBE as usize);
+    (&mut file)
+        .take(PROBE)
+        .read_to_end(&mut probe)
+        .map_err(|e| Error::io(path, e))?;
     file.rewind().map_err(|e| Error::io(path, e))?;
-    let ascii_word = preamble.starts_with(b"solid");
+    let count = probe
+        .get(80..84)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]));
+    let ascii = is_ascii(&probe);
     let binary_size = |n: u32| PREAMBLE + TRIANGLE * u64::from(n);
     let stl = match count {
-        Some(n) if binary_size(n) == size => stl_io::read_stl(&mut BinaryHeader { file, at: 0 }),
-        Some(n) if !ascii_word && binary_size(n) > size => {
+        Some(n) if binary_size(n) == size || (!ascii && binary_size(n) < size) => {
+            stl_io::read_stl(&mut BinaryHeader { file, at: 0 })
+        }
+        Some(n) if !ascii => {
             return Err(Error::input(
                 path,
                 format!(
@@ -132,20 +161,38 @@ mod tests {
         }
     }
 
+    /// Bytes past the last triangle (some exporters pad the file) do not
+    /// make a `solid` header pass for ASCII.
+    #[test]
+    fn a_binary_file_with_trailing_bytes_is_read_as_binary() {
+        let dir = tempfile::tempdir().unwrap();
+        for header in [&b"solid part\nexported"[..], b"solid bipyramid", b"binary"] {
+            let path = dir.path().join("padded.stl");
+            let mut bytes = bipyramid(header);
+            bytes.extend(b"\n\0\0 trailing\n");
+            std::fs::write(&path, bytes).unwrap();
+            let mesh = Mesh::load(&path).unwrap();
+            assert_eq!(mesh.triangles.len(), 10, "{header:?}");
+            mesh.check_closed().unwrap();
+        }
+    }
+
     #[test]
     fn a_cut_short_binary_file_says_so() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("cut.stl");
-        let mut bytes = bipyramid(b"binary");
-        bytes.truncate(300);
-        std::fs::write(&path, bytes).unwrap();
-        let msg = Mesh::load(&path).unwrap_err().to_string();
-        assert!(
-            msg.contains("cut.stl")
-                && msg.contains("counts 10 triangles")
-                && msg.contains("cut short"),
-            "{msg}"
-        );
+        for header in [&b"binary"[..], b"solid part\nexported"] {
+            let mut bytes = bipyramid(header);
+            bytes.truncate(300);
+            std::fs::write(&path, bytes).unwrap();
+            let msg = Mesh::load(&path).unwrap_err().to_string();
+            assert!(
+                msg.contains("cut.stl")
+                    && msg.contains("counts 10 triangles")
+                    && msg.contains("cut short"),
+                "{msg}"
+            );
+        }
     }
 
     #[test]
