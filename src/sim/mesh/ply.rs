@@ -21,7 +21,7 @@ use ply_rs::parser::Parser;
 use ply_rs::ply::{
     ElementDef, Encoding, Header, Property, PropertyAccess, PropertyType, ScalarType,
 };
-use std::io::BufReader;
+use std::io::{BufRead, BufReader, Seek};
 use std::path::Path;
 
 /// Most vertices, faces or triangles read from one file (a few hundred MB
@@ -196,6 +196,39 @@ fn unreadable(part: &str, e: &std::io::Error) -> String {
     }
 }
 
+/// Checks that every number of the header's `element` and `format` lines
+/// fits in 64 bits, which `ply-rs` assumes (it panics on a longer one).
+fn check_header_numbers(reader: &mut impl BufRead) -> std::result::Result<(), String> {
+    let mut line = Vec::new();
+    loop {
+        line.clear();
+        match reader.read_until(b'\n', &mut line) {
+            Ok(0) | Err(_) => return Ok(()),
+            Ok(_) => {}
+        }
+        let text = String::from_utf8_lossy(&line);
+        let words: Vec<&str> = text.split_whitespace().collect();
+        match words.first().copied() {
+            Some("end_header") => return Ok(()),
+            Some("element" | "format") => {
+                let too_long = words
+                    .iter()
+                    .flat_map(|w| w.split('.'))
+                    .find(|w| w.len() > 19 && w.bytes().all(|b| b.is_ascii_digit()));
+                if let Some(number) = too_long {
+                    return Err(format!(
+                        "its header line `{} …` holds the number {}…, past any count a file \
+                         can hold",
+                        words[..2.min(words.len())].join(" "),
+                        &number[..12]
+                    ));
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
 /// Reads a PLY mesh.
 pub(super) fn load(path: &Path) -> Result<Mesh> {
     load_at_most(path, MAX_PLY_ELEMENTS)
@@ -211,6 +244,8 @@ fn load_at_most(path: &Path, limit: usize) -> Result<Mesh> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let size = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut reader = BufReader::new(file);
+    check_header_numbers(&mut reader).map_err(bad)?;
+    reader.rewind().map_err(|e| Error::io(path, e))?;
     let header = Parser::<Skipped>::new()
         .read_header(&mut reader)
         .map_err(malformed("header"))?;

@@ -132,6 +132,12 @@ fn bad_files_are_named_with_what_is_wrong() {
             "at most 10000000",
         ),
         (
+            "digits.ply",
+            cube.replace("element face 6", "element face 99999999999999999999999")
+                .into_bytes(),
+            "holds the number 999999999999…",
+        ),
+        (
             "index.ply",
             cube.replace("4 1 3 7 5", "4 1 3 7 9").into_bytes(),
             "uses vertex 9, but the file has 8 vertices",
