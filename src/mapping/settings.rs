@@ -324,6 +324,7 @@ mod tests {
         let sensor = RangeModel {
             sigma0: 0.001,
             k: 0.002,
+            k2: 0.0,
             angular_sigma: 0.001,
             dropout: 0.0,
         };

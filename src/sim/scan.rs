@@ -219,6 +219,7 @@ mod tests {
         let model = RangeModel {
             sigma0: 0.001,
             k: 0.002,
+            k2: 0.004,
             angular_sigma: 0.0,
             dropout: 0.1,
         };

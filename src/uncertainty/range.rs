@@ -6,8 +6,8 @@
 use crate::geometry::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
-/// Gaussian range error `σ(r) = σ0 + k r`, optional angular jitter of the true
-/// beam direction, optional dropout.
+/// Gaussian range error `σ(r) = σ0 + k r + k2 r²`, optional angular jitter of
+/// the true beam direction, optional dropout.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct RangeModel {
@@ -16,6 +16,11 @@ pub struct RangeModel {
     /// Growth of the standard deviation with range (m per m).
     #[serde(default)]
     pub k: f64,
+    /// Growth with the square of the range (m per m²): a stereo or
+    /// structured-light depth camera's error, which triangulation makes
+    /// grow as its range squared.
+    #[serde(default)]
+    pub k2: f64,
     /// Standard deviation of the beam direction about each of its two
     /// perpendicular axes (radians).
     #[serde(default)]
@@ -31,6 +36,7 @@ impl RangeModel {
     pub const NOISELESS: RangeModel = RangeModel {
         sigma0: 0.0,
         k: 0.0,
+        k2: 0.0,
         angular_sigma: 0.0,
         dropout: 0.0,
     };
@@ -38,10 +44,12 @@ impl RangeModel {
     /// Checks the numbers; errors are phrased for the `[range]` table.
     pub fn check(&self) -> Result<(), String> {
         // Beyond these a "range sensor" says nothing and the statistics
-        // overflow: a metre of noise, a metre per metre, half a radian.
+        // overflow: a metre of noise, a metre per metre (or per m²), half a
+        // radian.
         for (name, value, limit) in [
             ("sigma0", self.sigma0, 1.0),
             ("k", self.k, 1.0),
+            ("k2", self.k2, 1.0),
             ("angular_sigma", self.angular_sigma, 0.5),
         ] {
             if !value.is_finite() || !(0.0..=limit).contains(&value) {
@@ -59,10 +67,11 @@ impl RangeModel {
         Ok(())
     }
 
-    /// Range standard deviation at range `r`.
+    /// Range standard deviation at range `r`: `σ0 + k r + k2 r²`.
     #[inline]
     pub fn sigma(&self, r: f64) -> f64 {
-        self.sigma0 + self.k * r
+        // Without k2 the sum is σ0 + k r to the bit.
+        self.sigma0 + self.k * r + self.k2 * r * r
     }
 
     /// Covariance of the measured point `r d` in the laser frame (docs/math.md §4.5):
@@ -88,6 +97,7 @@ mod tests {
         let model = RangeModel {
             sigma0: 0.001,
             k: 0.002,
+            k2: 0.0,
             angular_sigma: 0.001,
             dropout: 0.0,
         };
@@ -108,5 +118,32 @@ mod tests {
         }
         .check()
         .is_err());
+        for k2 in [-1e-3, 2.0, f64::NAN] {
+            let message = RangeModel { k2, ..model }.check().unwrap_err();
+            assert!(message.contains("k2"), "{message}");
+        }
+    }
+
+    /// A depth camera's σ grows as the range squared; without `k2` the
+    /// model is the linear one, to the bit.
+    #[test]
+    fn sigma_grows_with_the_square_of_the_range_by_k2() {
+        let linear = RangeModel {
+            sigma0: 0.001,
+            k: 0.002,
+            k2: 0.0,
+            angular_sigma: 0.0,
+            dropout: 0.0,
+        };
+        let depth_camera = RangeModel {
+            k2: 0.004,
+            ..linear
+        };
+        for r in [0.3, 1.0, 2.5] {
+            assert_eq!(linear.sigma(r).to_bits(), (0.001 + 0.002 * r).to_bits());
+            let expected = 0.001 + 0.002 * r + 0.004 * r * r;
+            assert!((depth_camera.sigma(r) - expected).abs() < 1e-15);
+        }
+        assert!(depth_camera.check().is_ok());
     }
 }
