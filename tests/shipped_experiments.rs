@@ -58,3 +58,19 @@ fn the_results_page_lists_every_shipped_experiment() {
         "docs/results.md table against experiments/*.toml"
     );
 }
+
+/// Every shipped error profile loads, also one that no shipped experiment
+/// uses (a user's starting point).
+#[test]
+fn every_shipped_profile_loads() {
+    let profiles: Vec<_> = std::fs::read_dir(Path::new(ROOT).join("experiments/profiles"))
+        .unwrap()
+        .map(|entry| entry.unwrap().path())
+        .filter(|path| path.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    assert!(profiles.len() >= 8, "{profiles:?}");
+    for path in profiles {
+        sigmap::sim::profile::ErrorProfile::load(&path)
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    }
+}
