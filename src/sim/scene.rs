@@ -159,12 +159,22 @@ pub(crate) fn to_parry(v: &Vector3) -> ParryVector {
     ParryVector::new(v.x, v.y, v.z)
 }
 
-fn positive(value: Option<f64>, field: &str, shape: &str) -> std::result::Result<f64, String> {
+/// `value`, a positive length no greater than `limit` (m).
+fn positive(
+    value: Option<f64>,
+    field: &str,
+    shape: &str,
+    limit: f64,
+) -> std::result::Result<f64, String> {
     match value {
         None => Err(format!("a {shape} needs `{field}`")),
         Some(v) if !(v.is_finite() && v > 0.0) => {
             Err(format!("`{field}` = {v} must be a positive length (m)"))
         }
+        Some(v) if v > limit => Err(format!(
+            "`{field}` = {v:e} m is past any workcell: an object lies within {} km of its origin",
+            MAX_MESH_REACH / 1000.0
+        )),
         Some(v) => Ok(v),
     }
 }
@@ -208,6 +218,13 @@ impl ObjectSpec {
                         "box size {size:?} must be positive lengths (m)"
                     )));
                 }
+                if size.iter().any(|s| *s > 2.0 * MAX_MESH_REACH) {
+                    return Err(bad(format!(
+                        "box size {size:?} is past any workcell: an object lies within {} km \
+                         of its origin",
+                        MAX_MESH_REACH / 1000.0
+                    )));
+                }
                 Ok((
                     SharedShape::cuboid(size[0] / 2.0, size[1] / 2.0, size[2] / 2.0),
                     "box",
@@ -217,13 +234,14 @@ impl ObjectSpec {
             }
             "sphere" => {
                 self.unused(&["radius"]).map_err(bad)?;
-                let r = positive(self.radius, "radius", "sphere").map_err(bad)?;
+                let r = positive(self.radius, "radius", "sphere", MAX_MESH_REACH).map_err(bad)?;
                 Ok((SharedShape::ball(r), "sphere", 0, local))
             }
             "cylinder" => {
                 self.unused(&["radius", "height"]).map_err(bad)?;
-                let r = positive(self.radius, "radius", "cylinder").map_err(bad)?;
-                let h = positive(self.height, "height", "cylinder").map_err(bad)?;
+                let r = positive(self.radius, "radius", "cylinder", MAX_MESH_REACH).map_err(bad)?;
+                let h = positive(self.height, "height", "cylinder", 2.0 * MAX_MESH_REACH)
+                    .map_err(bad)?;
                 // parry's cylinder runs along its y axis; ours along z.
                 let y_to_z = ParryPose::from_rotation(ParryRotation::from_rotation_x(
                     std::f64::consts::FRAC_PI_2,
@@ -290,8 +308,9 @@ impl ObjectSpec {
 /// the tree (1e8: about 1.2 GB).
 pub const MAX_TRUTH_BOUNDARY_CELLS: f64 = 1e8;
 
-/// The farthest a scaled mesh's vertex may lie from its object's origin
-/// (m): 10 km, past any workcell and within the octree's reach.
+/// The farthest a scaled mesh's vertex, or a box's, sphere's or cylinder's
+/// surface, may lie from its object's origin (m): 10 km, past any workcell
+/// and within the octree's reach.
 const MAX_MESH_REACH: f64 = 1e4;
 
 impl Scene {

@@ -138,6 +138,30 @@ fn bad_scene_inputs_are_named() {
     );
 }
 
+/// A primitive past any workcell is refused as a mesh scaled past one is;
+/// a 10 km floor is not.
+#[test]
+fn a_primitive_past_any_workcell_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    for (object, refused) in [
+        ("shape = \"box\"\nsize = [1e300, 1.0, 0.1]", true),
+        ("shape = \"box\"\nsize = [20000.0, 20000.0, 0.1]", false),
+        ("shape = \"sphere\"\nradius = 2e4", true),
+        ("shape = \"cylinder\"\nradius = 0.1\nheight = 1e300", true),
+        ("shape = \"cylinder\"\nradius = 1e4\nheight = 2e4", false),
+    ] {
+        let path = write_scene(dir.path(), &format!("[[object]]\n{object}\n"));
+        match Scene::load(&path) {
+            Err(e) => {
+                let message = e.to_string();
+                assert!(refused, "{object}: {message}");
+                assert!(message.contains("past any workcell"), "{object}: {message}");
+            }
+            Ok(_) => assert!(!refused, "{object} should be refused"),
+        }
+    }
+}
+
 #[test]
 fn a_mesh_scaled_past_any_workcell_is_refused() {
     let dir = tempfile::tempdir().unwrap();
