@@ -159,6 +159,15 @@ pub(crate) fn to_parry(v: &Vector3) -> ParryVector {
     ParryVector::new(v.x, v.y, v.z)
 }
 
+/// The refusal of a primitive's `what` (its field and value) for reaching
+/// past [`MAX_MESH_REACH`].
+fn past_any_workcell(what: String) -> String {
+    format!(
+        "{what} is past any workcell: an object lies within {} km of its origin",
+        MAX_MESH_REACH / 1000.0
+    )
+}
+
 /// `value`, a positive length no greater than `limit` (m).
 fn positive(
     value: Option<f64>,
@@ -171,10 +180,7 @@ fn positive(
         Some(v) if !(v.is_finite() && v > 0.0) => {
             Err(format!("`{field}` = {v} must be a positive length (m)"))
         }
-        Some(v) if v > limit => Err(format!(
-            "`{field}` = {v:e} m is past any workcell: an object lies within {} km of its origin",
-            MAX_MESH_REACH / 1000.0
-        )),
+        Some(v) if v > limit => Err(past_any_workcell(format!("`{field}` = {v:e} m"))),
         Some(v) => Ok(v),
     }
 }
@@ -219,11 +225,7 @@ impl ObjectSpec {
                     )));
                 }
                 if size.iter().any(|s| *s > 2.0 * MAX_MESH_REACH) {
-                    return Err(bad(format!(
-                        "box size {size:?} is past any workcell: an object lies within {} km \
-                         of its origin",
-                        MAX_MESH_REACH / 1000.0
-                    )));
+                    return Err(bad(past_any_workcell(format!("box size {size:?}"))));
                 }
                 Ok((
                     SharedShape::cuboid(size[0] / 2.0, size[1] / 2.0, size[2] / 2.0),

@@ -28,6 +28,14 @@ use std::path::Path;
 /// of polygons, as [`super::MAX_MESH_BYTES`] allows an STL file).
 pub(super) const MAX_PLY_ELEMENTS: usize = 10_000_000;
 
+/// The names a `face` element's list of corners goes by.
+const CORNERS: [&str; 2] = ["vertex_indices", "vertex_index"];
+
+/// Whether a `face` property named `name` lists its corners.
+fn is_corners(name: &str) -> bool {
+    CORNERS.contains(&name)
+}
+
 /// A `vertex` element's position; a coordinate not given stays NaN.
 struct Vertex([f64; 3]);
 
@@ -62,7 +70,7 @@ impl PropertyAccess for Face {
     }
 
     fn set_property(&mut self, name: String, property: Property) {
-        if name != "vertex_indices" && name != "vertex_index" {
+        if !is_corners(&name) {
             return;
         }
         fn all<T: Copy>(list: &[T], index: impl Fn(T) -> Option<u32>) -> Option<Vec<u32>> {
@@ -119,7 +127,7 @@ fn least_bytes(element: &ElementDef, encoding: &Encoding) -> u64 {
         .properties
         .values()
         .map(|p| {
-            let corners = face && (p.name == "vertex_indices" || p.name == "vertex_index");
+            let corners = face && is_corners(&p.name);
             let entries = if corners { 3 } else { 0 };
             match (&p.data_type, encoding) {
                 (PropertyType::Scalar(_), Encoding::Ascii) => 2,
@@ -148,7 +156,7 @@ fn check_header(header: &Header, size: u64, limit: usize) -> std::result::Result
         "the PLY file has no `face` element: it is a point cloud, not a mesh \
          (a scene object needs a closed triangle surface)",
     )?;
-    if !["vertex_indices", "vertex_index"]
+    if !CORNERS
         .iter()
         .any(|name| face.properties.contains_key(*name))
     {
