@@ -481,6 +481,33 @@ fn score_against_a_scene_with_recorded_scans() {
     let (placed, shifted): (f64, f64) =
         (rows[0][f1].parse().unwrap(), rows[1][f1].parse().unwrap());
     assert!(shifted < placed - 0.2, "{shifted} vs {placed}");
+    // The scans' rays meet the scene in place at their returns: no warning.
+    // Raised 5 cm, its table top stands in their way: a warning beside the
+    // scores.
+    let warned = |pose: &str| {
+        let out = sigmap(&[
+            "score",
+            &map,
+            "--scene",
+            &scene,
+            "--scans",
+            &graph,
+            "--max-range",
+            "2.0",
+            "--scene-pose",
+            pose,
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{stderr}");
+        stderr
+    };
+    let in_place = warned("0,0,0,0,0,0");
+    assert!(!in_place.contains("warning"), "{in_place}");
+    let raised = warned("0,0,0.05,0,0,0");
+    assert!(
+        raised.contains("warning: only") && raised.contains("check --scene-pose"),
+        "{raised}"
+    );
     // Bad input: one line, exit 2.
     for (args, says) in [
         (vec!["--scene-pose", "1,2,3"], "six finite numbers"),

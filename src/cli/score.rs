@@ -7,7 +7,10 @@ use crate::error::{Error, Result};
 use crate::experiment::output::wrong_cells::{write_wrong_cells, ErrorsFormat};
 use crate::experiment::run::recorded::read_scan_graph;
 use crate::experiment::run::runner::append_row;
-use crate::experiment::run::scoring::{score_against_scene, score_external, Scored};
+use crate::experiment::run::scoring::{
+    score_against_scene, score_external, surface_agreement, Scored, SurfaceAgreement,
+    AGREEMENT_WARNING,
+};
 use crate::experiment::study::metrics::{Kind, RunRow, METRICS};
 use crate::experiment::Experiment;
 use crate::geometry::Pose;
@@ -146,11 +149,42 @@ fn against_scene(
             list_wrong,
         )
     })??;
+    let agreement = surface_agreement(
+        &scene_data,
+        &map_from_scene,
+        &nodes,
+        args.max_range,
+        AGREEMENT_CELLS * map.resolution(),
+    );
+    if agreement.share() < AGREEMENT_WARNING {
+        super::print_notes(&[misplaced_scene(&agreement, scene)], args.run.quiet);
+    }
     Ok((
         scored,
         map,
         format!("scene {} seen by {}", scene.display(), scans.display()),
     ))
+}
+
+/// How near its range, in cells, a return's ray must meet the scene.
+const AGREEMENT_CELLS: f64 = 2.0;
+
+/// The warning for scans whose rays mostly meet the scene elsewhere than at
+/// their returns.
+fn misplaced_scene(agreement: &SurfaceAgreement, scene: &std::path::Path) -> String {
+    format!(
+        "warning: only {:.0}% of the scans' returns ({} of the {} looked at) meet the \
+         scene's first surface along their ray within {} m ({AGREEMENT_CELLS} cells) of \
+         their range, with {} where --scene-pose puts it: check \
+         --scene-pose (the scene's pose in the map frame, x,y,z,roll,pitch,yaw), the scene's \
+         units and frame, and that it models what the scans see; the scores count every \
+         return off the model against the map",
+        100.0 * agreement.share(),
+        agreement.near,
+        agreement.sampled,
+        agreement.tolerance,
+        scene.display()
+    )
 }
 
 fn print_row(title: &str, row: &RunRow) {

@@ -202,5 +202,72 @@ pub fn score_against_scene(
     Ok(scored)
 }
 
+/// How well the recorded returns sit on the scene's surfaces where
+/// `map_from_scene` puts the scene: a check of `--scene-pose` (and of the
+/// scene's units and frame) that needs no map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceAgreement {
+    /// Returns looked at: every hit, or an even sample of [`AGREEMENT_SAMPLE`].
+    pub sampled: usize,
+    /// Of those, the ones whose ray, cast on the scene, first meets a
+    /// surface within `tolerance` of the recorded range.
+    pub near: usize,
+    /// The distance (m).
+    pub tolerance: f64,
+}
+
+impl SurfaceAgreement {
+    /// The share of the sampled returns near a surface (1 when none was
+    /// sampled: nothing disagrees).
+    pub fn share(&self) -> f64 {
+        if self.sampled == 0 {
+            1.0
+        } else {
+            self.near as f64 / self.sampled as f64
+        }
+    }
+}
+
+/// The most returns [`surface_agreement`] looks at.
+pub const AGREEMENT_SAMPLE: usize = 20_000;
+
+/// Below this share of returns near the scene's surfaces, `sigmap score
+/// --scene` warns that the scene may be misplaced: a registered scan of a
+/// modelled workcell puts nearly all its returns on the model.
+pub const AGREEMENT_WARNING: f64 = 0.8;
+
+/// [`SurfaceAgreement`] of the recorded returns (points within `max_range`,
+/// as [`recorded_rays`] counts hits) with `scene` placed by `map_from_scene`:
+/// a return agrees when its ray, cast from its scan's origin on the scene,
+/// first meets a surface within `tolerance` of its recorded range (not
+/// before, as through a misplaced solid, nor never). At most
+/// [`AGREEMENT_SAMPLE`] returns, taken at an even stride in file order (the
+/// same on every run).
+pub fn surface_agreement(
+    scene: &Scene,
+    map_from_scene: &Isometry3,
+    nodes: &[ScanNode],
+    max_range: Option<f64>,
+    tolerance: f64,
+) -> SurfaceAgreement {
+    let hits = || recorded_rays(nodes, max_range).filter(|ray| ray.hit);
+    let stride = hits().count().div_ceil(AGREEMENT_SAMPLE).max(1);
+    let scene_from_map = map_from_scene.inverse();
+    let (sampled, near) = hits().step_by(stride).fold((0, 0), |(sampled, near), ray| {
+        let (origin, end) = (scene_from_map * ray.origin, scene_from_map * ray.end);
+        let range = (end - origin).norm();
+        let on = range > 0.0
+            && scene
+                .cast_ray(&origin, &((end - origin) / range), range + tolerance)
+                .is_some_and(|(first, _)| first >= range - tolerance);
+        (sampled + 1, near + usize::from(on))
+    });
+    SurfaceAgreement {
+        sampled,
+        near,
+        tolerance,
+    }
+}
+
 #[cfg(test)]
 mod tests;
