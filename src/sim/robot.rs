@@ -81,6 +81,41 @@ pub struct Robot {
     links: Vec<String>,
     /// child link -> (parent link, joint)
     parent_joint: HashMap<String, (String, ChainJoint)>,
+    /// What the user should know of the file that is not an error
+    /// ([`Robot::notes`]).
+    notes: Vec<String>,
+}
+
+/// How far a joint's limits may reach, in turns, before sigmap asks whether
+/// they are degrees: real arms stop within two turns (the UR5's ±2π), a
+/// limit written in degrees (±170) is 27 turns as radians.
+const LIMIT_TURNS: f64 = 2.0;
+
+/// The notes of `joint` that are not errors: an origin whose angles, or
+/// limits that, turn more than a radian value would (degrees written where
+/// URDF reads radians, most likely).
+fn joint_notes(joint: &urdf_rs::Joint, path: &Path) -> Vec<String> {
+    let what = format!("{} joint '{}'", path.display(), joint.name);
+    let origin = Pose::new(joint.origin.xyz.0, joint.origin.rpy.0);
+    let mut notes: Vec<String> = origin
+        .degrees_note(&format!("{what} origin:"))
+        .into_iter()
+        .collect();
+    let moving = !matches!(
+        joint.joint_type,
+        urdf_rs::JointType::Fixed | urdf_rs::JointType::Prismatic
+    );
+    let (lower, upper) = (joint.limit.lower, joint.limit.upper);
+    let reach = LIMIT_TURNS * std::f64::consts::TAU;
+    if moving && (lower.abs() > reach || upper.abs() > reach) {
+        notes.push(format!(
+            "note: {what}: limits [{lower}, {upper}] reach past {LIMIT_TURNS} turns: URDF \
+             angles are radians; if these are degrees, write lower=\"{:.4}\" upper=\"{:.4}\"",
+            lower.to_radians(),
+            upper.to_radians()
+        ));
+    }
+    notes
 }
 
 /// A URDF joint as a chain joint: links that exist, a finite origin, a
@@ -215,9 +250,11 @@ impl Robot {
             .map_err(|e| Error::input(path, format!("malformed URDF: {e}")))?;
         let links: Vec<String> = urdf.links.iter().map(|l| l.name.clone()).collect();
         let mut parent_joint = HashMap::new();
+        let mut notes = Vec::new();
         for joint in &urdf.joints {
             let bad = |msg: String| Error::input(path, format!("joint '{}': {msg}", joint.name));
             let chain_joint = chain_joint(joint, &links).map_err(bad)?;
+            notes.extend(joint_notes(joint, path));
             let previous = parent_joint.insert(
                 joint.child.link.clone(),
                 (joint.parent.link.clone(), chain_joint),
@@ -240,7 +277,14 @@ impl Robot {
             source: path.to_path_buf(),
             links,
             parent_joint,
+            notes,
         })
+    }
+
+    /// What the user should know of the file that is not an error: joint
+    /// angles or limits that look like degrees.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
     }
 
     /// The names of all links.

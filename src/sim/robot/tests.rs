@@ -246,3 +246,47 @@ fn unknown_links_and_bad_files_are_input_errors() {
         .to_string()
         .contains("file not found"));
 }
+
+#[test]
+fn joint_angles_and_limits_in_degrees_get_a_note() {
+    // The shipped arms are in radians: no note.
+    for arm in ["ur5.urdf", "puma560.urdf"] {
+        let robot = Robot::load(&robots_dir().join(arm)).unwrap();
+        assert!(robot.notes().is_empty(), "{arm}: {:?}", robot.notes());
+    }
+    // The shoulder lift's origin pitch and the base's limits in degrees
+    // load (they are numbers), with a note each naming the joint and the
+    // radians.
+    let dir = tempfile::tempdir().unwrap();
+    let ur5 = std::fs::read_to_string(robots_dir().join("ur5.urdf")).unwrap();
+    let degrees = ur5
+        .replacen(
+            "xyz=\"0 0.13585 0\" rpy=\"0 1.5707963267948966 0\"",
+            "xyz=\"0 0.13585 0\" rpy=\"0 90 0\"",
+            1,
+        )
+        .replacen(
+            "lower=\"-6.283185307179586\" upper=\"6.283185307179586\"",
+            "lower=\"-170\" upper=\"170\"",
+            1,
+        );
+    let file = dir.path().join("degrees.urdf");
+    std::fs::write(&file, degrees).unwrap();
+    let robot = Robot::load(&file).unwrap();
+    let notes = robot.notes();
+    assert_eq!(notes.len(), 2, "{notes:?}");
+    assert!(
+        notes.iter().any(
+            |n| n.contains("degrees.urdf joint 'shoulder_lift_joint' origin")
+                && n.contains("[0.0000, 1.5708, 0.0000]")
+        ),
+        "{notes:?}"
+    );
+    assert!(
+        notes.iter().any(
+            |n| n.contains("joint 'shoulder_pan_joint': limits [-170, 170]")
+                && n.contains("lower=\"-2.9671\" upper=\"2.9671\"")
+        ),
+        "{notes:?}"
+    );
+}

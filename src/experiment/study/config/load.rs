@@ -379,6 +379,7 @@ impl Experiment {
         let robot = Robot::load(&referred(path, "[robot] urdf", &file.robot.urdf)?)?;
         let mount = Mount::of(&robot, &file.robot, &file, &profile, path)?;
         let mut notes = scene.notes().to_vec();
+        notes.extend_from_slice(robot.notes());
         let written = [
             ("[robot]", Pose::new(file.robot.xyz, file.robot.rpy)),
             ("[world_from_scene]", mount.world_from_scene),
