@@ -154,6 +154,31 @@ fn map_scans_refuses_bad_graphs_and_profiles() {
     refused_map(&nan, &profile, "nan.graph", "NaN");
     let missing = d.join("missing.graph").display().to_string();
     refused_map(&missing, &profile, "missing.graph", "cannot read");
+    // A plain-text scan log: a bad line is named; a log of no points, or
+    // text that is no log, is refused.
+    let nan = write("nan.log", b"NODE 0 0 1 0 0 0\n0 0 0.8\n0 NaN 0.8\n");
+    refused_map(
+        &nan,
+        &profile,
+        "nan.log",
+        "line 3: 'NaN' is not a finite number",
+    );
+    let empty = write("empty.log", b"# scans\nNODE 0 0 1 0 0 0\n");
+    refused_map(&empty, &profile, "empty.log", "the scans hold no points");
+    let other = write("notes.txt", b"not scans at all\n");
+    refused_map(
+        &other,
+        &profile,
+        "notes.txt",
+        "not a valid scan log: line 1",
+    );
+    let blank = write("blank.log", b"");
+    refused_map(
+        &blank,
+        &profile,
+        "blank.log",
+        "neither a scan log nor a ScanGraph",
+    );
     // The collaborative profile gives the arm error per joint.
     let good = write("good.graph", &good);
     let joints = root()

@@ -342,28 +342,12 @@ fn graph2tree_maps_the_exported_scans_as_the_ray_update_does() {
     }
 }
 
-/// Writes a ScanGraph's nodes as the plain-text log `log2graph` reads:
-/// `NODE x y z roll pitch yaw`, then one `x y z` line per point.
+/// Writes a ScanGraph's nodes as the plain-text log `log2graph` reads
+/// (`sigmap map --scans` reads it too).
 fn write_scan_log(graph: &std::path::Path, log: &std::path::Path) {
-    use sigmap::geometry::Pose;
     use sigmap::mapping::scan_graph::parse_scan_graph;
-    use std::fmt::Write as _;
     let nodes = parse_scan_graph(&std::fs::read(graph).unwrap()).unwrap();
-    let mut text = String::from("# sigmap export, as log2graph's input\n");
-    for node in &nodes {
-        let pose = Pose::from_isometry(&node.map_from_sensor);
-        let (t, r) = (pose.xyz, pose.rpy);
-        let [x, y, z, roll, pitch, yaw] = [t.x, t.y, t.z, r.x, r.y, r.z];
-        writeln!(
-            text,
-            "NODE {x:.9} {y:.9} {z:.9} {roll:.9} {pitch:.9} {yaw:.9}"
-        )
-        .unwrap();
-        for p in &node.points {
-            writeln!(text, "{:.9} {:.9} {:.9}", p.x, p.y, p.z).unwrap();
-        }
-    }
-    std::fs::write(log, text).unwrap();
+    std::fs::write(log, sigmap::mapping::scan_log::to_scan_log(&nodes)).unwrap();
 }
 
 /// `sigmap map --scans` on a graph made by OctoMap's own `log2graph`: with
@@ -397,10 +381,10 @@ fn map_scans_agrees_with_graph2tree_on_a_log2graph_graph() {
         .arg("-o")
         .arg(&theirs)
         .args(["-res", "0.01", "-m", "2"]));
-    let map_scans = |method: &str, out: &std::path::Path| {
+    let map_scans_of = |scans: &std::path::Path, method: &str, out: &std::path::Path| {
         run(sigmap()
             .args(["map", "--scans"])
-            .arg(&graph)
+            .arg(scans)
             .args([
                 "--profile",
                 "experiments/profiles/collaborative_poses.toml",
@@ -415,12 +399,22 @@ fn map_scans_agrees_with_graph2tree_on_a_log2graph_graph() {
             ])
             .arg(out));
     };
+    let map_scans = |method: &str, out: &std::path::Path| map_scans_of(&graph, method, out);
     let ours = dir.path().join("ours.ot");
     map_scans("ray_update", &ours);
     let their_tree = read_octree(&dir.path().join("octomap.bt.ot"), Clamp::OCTOMAP).unwrap();
     let ours_tree = read_octree(&ours, Clamp::OCTOMAP).unwrap();
     let (differ, known) = class_differences(&ours_tree, &their_tree);
     eprintln!("ray update: {differ} of {known} finest cells classed differently");
+    assert!(known > 100_000, "{known}");
+    assert!(differ * 1000 <= known, "{differ} of {known} differ");
+    // The log itself, read by sigmap (poses by the same convention as
+    // log2graph's, points kept as f64): the same tree to the same bound.
+    let from_log = dir.path().join("from_log.ot");
+    map_scans_of(&log, "ray_update", &from_log);
+    let log_tree = read_octree(&from_log, Clamp::OCTOMAP).unwrap();
+    let (differ, known) = class_differences(&log_tree, &their_tree);
+    eprintln!("ray update of the log: {differ} of {known} finest cells classed differently");
     assert!(known > 100_000, "{known}");
     assert!(differ * 1000 <= known, "{differ} of {known} differ");
 

@@ -78,8 +78,9 @@ enum Command {
     /// unscented merge with the shared pose errors accounted once;
     /// ray_update: OctoMap's update (ray_update_discrete: its discretized
     /// insertion). Writes a .bt or .ot file. With --scans
-    /// and --profile, maps scans recorded elsewhere (an OctoMap ScanGraph)
-    /// instead of an experiment's simulated run.
+    /// and --profile, maps scans recorded elsewhere (an OctoMap ScanGraph or
+    /// the plain-text log log2graph reads) instead of an experiment's
+    /// simulated run.
     Map(MapArgs),
     /// Write a scene's true occupancy as an OctoMap file
     ///
@@ -198,7 +199,9 @@ pub(crate) struct MapArgs {
     #[arg(long, conflicts_with = "scans")]
     export_rays: Option<PathBuf>,
     /// Map scans recorded elsewhere: an OctoMap ScanGraph (.graph, e.g. from
-    /// log2graph or `sigmap export`), points in each node's sensor frame.
+    /// log2graph or `sigmap export`) or the plain-text log log2graph reads
+    /// (`NODE x y z roll pitch yaw` lines, each followed by `x y z` lines),
+    /// points in each node's sensor frame.
     #[arg(long, conflicts_with = "experiment", requires = "profile")]
     scans: Option<PathBuf>,
     /// With --scans: the error profile (TOML) the scans are believed with;
@@ -330,8 +333,9 @@ pub(crate) struct ScoreArgs {
     /// truth, placed in the map frame by --scene-pose, at the map's resolution.
     #[arg(long, requires = "scans", conflicts_with_all = ["experiment", "cell"])]
     scene: Option<PathBuf>,
-    /// With --scene: the recorded scans (OctoMap ScanGraph) the map was built
-    /// from; the cells their rays crossed or ended in are the ones scored.
+    /// With --scene: the recorded scans (an OctoMap ScanGraph or a scan log,
+    /// as `map --scans` reads them) the map was built from; the cells their
+    /// rays crossed or ended in are the ones scored.
     #[arg(long, requires = "scene")]
     scans: Option<PathBuf>,
     /// With --scene: where the scene stands in the map frame,

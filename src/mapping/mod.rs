@@ -36,6 +36,7 @@ pub mod pooling;
 pub mod ray_update;
 pub mod scan;
 pub mod scan_graph;
+pub mod scan_log;
 pub mod settings;
 pub mod shared_motion;
 pub mod spherical;

@@ -25,12 +25,14 @@ use crate::mapping::scan::{
     Scan, MAX_BEAMS_PER_VIEWPOINT,
 };
 use crate::mapping::scan_graph::{parse_scan_graph, ScanNode};
+use crate::mapping::scan_log::parse_scan_log;
 use crate::mapping::settings::MapSettings;
 use crate::mapping::spherical::{spherical, Axis};
 use crate::mapping::{build_map_with, BuildExtras, Method, Octree};
 use crate::sim::profile::{ArmError, ErrorProfile};
 use crate::uncertainty::{SigmaSet, UncertainPose};
 use rayon::prelude::*;
+use std::io::Read as _;
 use std::path::Path;
 
 /// How recorded scans are mapped.
@@ -52,16 +54,44 @@ pub struct RecordedOptions {
 /// about as many bytes as the file.
 pub const MAX_GRAPH_BYTES: u64 = 8 << 30;
 
-/// Reads and checks a ScanGraph file: every problem (missing, too large,
-/// truncated, wrong counts, NaN, no scans) is an error naming the file.
+/// The largest plain-text scan log `sigmap map --scans` reads: its points
+/// take up to four times its bytes in memory (`0 0 0` is six bytes, a
+/// point 24), so as much as the largest graph's.
+pub const MAX_LOG_BYTES: u64 = 2 << 30;
+
+/// Reads and checks recorded scans: an OctoMap ScanGraph, or the plain-text
+/// log `log2graph` reads (`mapping::scan_log`), told apart by their first
+/// bytes (a graph's node count holds a zero byte; text holds none). Every
+/// problem (missing, too large, truncated, wrong counts, NaN, a bad line,
+/// no scans) is an error naming the file.
 pub fn read_scan_graph(path: &Path) -> Result<Vec<ScanNode>> {
     let meta = std::fs::metadata(path)
-        .map_err(|e| Error::input(path, format!("cannot read the scan graph: {e}")))?;
+        .map_err(|e| Error::input(path, format!("cannot read the scans: {e}")))?;
     if !meta.is_file() {
         // A device or a pipe would be read forever.
         return Err(Error::input(path, "is not a regular file"));
     }
     let size = meta.len();
+    let mut file = std::fs::File::open(path)
+        .map_err(|e| Error::input(path, format!("cannot read the scans: {e}")))?;
+    let mut head = Vec::with_capacity(4);
+    std::io::Read::by_ref(&mut file)
+        .take(4)
+        .read_to_end(&mut head)
+        .map_err(|e| Error::input(path, format!("cannot read the scans: {e}")))?;
+    let nodes = if head.len() == 4 && head.contains(&0) {
+        read_binary_graph(path, size)?
+    } else {
+        read_log(path, size)?
+    };
+    if nodes.iter().all(|n| n.points.is_empty()) {
+        return Err(Error::input(path, "the scans hold no points"));
+    }
+    Ok(nodes)
+}
+
+/// The nodes of the ScanGraph at `path` (`size` bytes).
+fn read_binary_graph(path: &Path, size: u64) -> Result<Vec<ScanNode>> {
     if size > MAX_GRAPH_BYTES {
         return Err(Error::input(
             path,
@@ -73,12 +103,24 @@ pub fn read_scan_graph(path: &Path) -> Result<Vec<ScanNode>> {
     }
     let bytes = std::fs::read(path)
         .map_err(|e| Error::input(path, format!("cannot read the scan graph: {e}")))?;
-    let nodes = parse_scan_graph(&bytes)
-        .map_err(|e| Error::input(path, format!("not a valid ScanGraph: {e}")))?;
-    if nodes.iter().all(|n| n.points.is_empty()) {
-        return Err(Error::input(path, "the scan graph holds no points"));
+    parse_scan_graph(&bytes).map_err(|e| Error::input(path, format!("not a valid ScanGraph: {e}")))
+}
+
+/// The nodes of the plain-text scan log at `path` (`size` bytes).
+fn read_log(path: &Path, size: u64) -> Result<Vec<ScanNode>> {
+    if size > MAX_LOG_BYTES {
+        return Err(Error::input(
+            path,
+            format!(
+                "{size} bytes of text: sigmap reads scan logs of at most {MAX_LOG_BYTES} \
+                 bytes; split the log, or turn it into a ScanGraph with OctoMap's log2graph"
+            ),
+        ));
     }
-    Ok(nodes)
+    let file = std::fs::File::open(path)
+        .map_err(|e| Error::input(path, format!("cannot read the scan log: {e}")))?;
+    parse_scan_log(std::io::BufReader::new(file))
+        .map_err(|e| Error::input(path, format!("not a valid scan log: {e}")))
 }
 
 /// The profile's belief about a recorded node's chain: `T_sw = I`,
