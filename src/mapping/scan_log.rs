@@ -18,13 +18,32 @@ use super::scan_graph::ScanNode;
 use crate::geometry::{Point3, Pose};
 use std::io::BufRead;
 
+/// The longest line read: a point or a pose in any notation is far
+/// shorter, and a file of one endless line is not held in memory.
+pub const MAX_LINE_BYTES: usize = 4096;
+
 /// The nodes of the log `reader` holds; an error names the line (1-based)
 /// and what is wrong with it.
-pub fn parse_scan_log(reader: impl BufRead) -> Result<Vec<ScanNode>, String> {
+pub fn parse_scan_log(mut reader: impl BufRead) -> Result<Vec<ScanNode>, String> {
     let mut nodes: Vec<ScanNode> = Vec::new();
-    for (index, line) in reader.lines().enumerate() {
-        let number = index + 1;
-        let line = line.map_err(|e| format!("line {number}: {e}"))?;
+    let mut bytes = Vec::new();
+    for number in 1.. {
+        bytes.clear();
+        let limit = MAX_LINE_BYTES as u64 + 1;
+        let read = std::io::Read::take(&mut reader, limit)
+            .read_until(b'\n', &mut bytes)
+            .map_err(|e| format!("line {number}: {e}"))?;
+        if read == 0 {
+            break;
+        }
+        if bytes.len() > MAX_LINE_BYTES {
+            return Err(format!(
+                "line {number}: longer than {MAX_LINE_BYTES} bytes: not a line of a scan log"
+            ));
+        }
+        let line = std::str::from_utf8(&bytes)
+            .map_err(|_| format!("line {number}: not text (invalid UTF-8)"))?
+            .trim_end_matches(['\n', '\r']);
         if line.starts_with('#') || line.starts_with(' ') || line.trim().is_empty() {
             continue;
         }
@@ -34,7 +53,7 @@ pub fn parse_scan_log(reader: impl BufRead) -> Result<Vec<ScanNode>, String> {
             let [x, y, z, roll, pitch, yaw] = numbers(tokens).map_err(|e| {
                 at(format!(
                     "{e} in `NODE x y z roll pitch yaw`, found '{}'",
-                    shown(&line)
+                    shown(line)
                 ))
             })?;
             let id = u32::try_from(nodes.len()).map_err(|_| at("too many nodes".into()))?;
@@ -47,7 +66,7 @@ pub fn parse_scan_log(reader: impl BufRead) -> Result<Vec<ScanNode>, String> {
             let [x, y, z] = numbers(tokens).map_err(|e| {
                 at(format!(
                     "{e} in a point `x y z` (or a `NODE x y z roll pitch yaw` line), found '{}'",
-                    shown(&line)
+                    shown(line)
                 ))
             })?;
             let node = nodes.last_mut().ok_or_else(|| {

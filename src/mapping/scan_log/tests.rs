@@ -81,6 +81,13 @@ fn a_bad_line_is_named_with_what_is_wrong() {
     let long = format!("NODE 0 0 0 0 0 0\n{}\n", "9 ".repeat(200));
     let err = parse(&long).unwrap_err();
     assert!(err.len() < 250 && err.contains('…'), "{err}");
+    // A line past the limit is refused without being held whole; bytes
+    // that are not text are named.
+    let endless = format!("NODE 0 0 0 0 0 0\n1 2 {}", "3".repeat(1 << 20));
+    let err = parse(&endless).unwrap_err();
+    assert!(err.starts_with("line 2: longer than 4096 bytes"), "{err}");
+    let err = parse_scan_log(&b"NODE 0 0 0 0 0 0\n1 2 \xff\n"[..]).unwrap_err();
+    assert_eq!(err, "line 2: not text (invalid UTF-8)");
 }
 
 #[test]
