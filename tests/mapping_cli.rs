@@ -429,19 +429,18 @@ fn score_against_a_scene_with_recorded_scans() {
     let map = path(&d.join("map.ot"));
     let csv_path = path(&csv);
     // `sigmap score` of the map against the scene, the row appended to `csv`.
-    let score_scene = |extra: &[&str]| {
-        let head = [
-            "score",
-            &map,
-            "--scene",
-            &scene,
-            "--scans",
-            &graph,
-            "--max-range",
-            "2.0",
-        ];
-        sigmap_ok(&[&head[..], extra, &["--csv", &csv_path]].concat())
-    };
+    let head = [
+        "score",
+        &map,
+        "--scene",
+        &scene,
+        "--scans",
+        &graph,
+        "--max-range",
+        "2.0",
+    ];
+    let score_scene =
+        |extra: &[&str]| sigmap_ok(&[&head[..], extra, &["--csv", &csv_path]].concat());
     let shown = score_scene(&[]);
     assert!(shown.contains("against scene"), "{shown}");
     let mut reader = csv::Reader::from_path(&csv).unwrap();
@@ -485,18 +484,7 @@ fn score_against_a_scene_with_recorded_scans() {
     // Raised 5 cm, its table top stands in their way: a warning beside the
     // scores.
     let warned = |pose: &str| {
-        let out = sigmap(&[
-            "score",
-            &map,
-            "--scene",
-            &scene,
-            "--scans",
-            &graph,
-            "--max-range",
-            "2.0",
-            "--scene-pose",
-            pose,
-        ]);
+        let out = sigmap(&[&head[..], &["--scene-pose", pose]].concat());
         let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
         assert!(out.status.success(), "{stderr}");
         stderr
