@@ -443,6 +443,10 @@ fn score_against_a_scene_with_recorded_scans() {
         |extra: &[&str]| sigmap_ok(&[&head[..], extra, &["--csv", &csv_path]].concat());
     let shown = score_scene(&[]);
     assert!(shown.contains("against scene"), "{shown}");
+    assert!(
+        shown.contains("% of ") && shown.contains("returns meet it within 0.02 m"),
+        "{shown}"
+    );
     let mut reader = csv::Reader::from_path(&csv).unwrap();
     let header = reader.headers().unwrap().clone();
     let row = reader.records().next().unwrap().unwrap();

@@ -162,7 +162,14 @@ fn against_scene(
     Ok((
         scored,
         map,
-        format!("scene {} seen by {}", scene.display(), scans.display()),
+        format!(
+            "scene {} seen by {} ({:.1}% of {} returns meet it within {} m of their range)",
+            scene.display(),
+            scans.display(),
+            100.0 * agreement.share(),
+            agreement.sampled,
+            agreement.tolerance,
+        ),
     ))
 }
 
