@@ -500,6 +500,21 @@ fn score_against_a_scene_with_recorded_scans() {
         raised.contains("warning: only") && raised.contains("check --scene-pose"),
         "{raised}"
     );
+    // The note moves it back down: the pose it gives draws no warning and
+    // no further move, and lies within a few millimetres of where the
+    // scene stood (the scans' registration error).
+    let suggested = raised
+        .split("give --scene-pose ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no suggested pose: {raised}"));
+    let z: f64 = suggested.split(',').nth(2).unwrap().parse().unwrap();
+    assert!(z.abs() < 0.01, "{suggested}");
+    let back = warned(suggested);
+    assert!(
+        !back.contains("warning") && !back.contains("note"),
+        "{back}"
+    );
     // Bad input: one line, exit 2.
     for (args, says) in [
         (vec!["--scene-pose", "1,2,3"], "six finite numbers"),

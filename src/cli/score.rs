@@ -5,12 +5,12 @@
 use super::{with_threads, ScoreArgs};
 use crate::error::{Error, Result};
 use crate::experiment::output::wrong_cells::{write_wrong_cells, ErrorsFormat};
+use crate::experiment::run::placement::{
+    refine_translation, surface_agreement, Refinement, SurfaceAgreement, AGREEMENT_WARNING,
+};
 use crate::experiment::run::recorded::read_scan_graph;
 use crate::experiment::run::runner::append_row;
-use crate::experiment::run::scoring::{
-    score_against_scene, score_external, surface_agreement, Scored, SurfaceAgreement,
-    AGREEMENT_WARNING,
-};
+use crate::experiment::run::scoring::{score_against_scene, score_external, Scored};
 use crate::experiment::study::metrics::{Kind, RunRow, METRICS};
 use crate::experiment::Experiment;
 use crate::geometry::Pose;
@@ -159,6 +159,26 @@ fn against_scene(
     if agreement.share() < AGREEMENT_WARNING {
         super::print_notes(&[misplaced_scene(&agreement, scene)], args.run.quiet);
     }
+    let refined = refine_translation(
+        &scene_data,
+        &map_from_scene,
+        &nodes,
+        args.max_range,
+        AGREEMENT_CELLS * map.resolution(),
+    );
+    if let Some(refined) = refined.filter(|r| {
+        r.shift.norm() > 0.5 * map.resolution() && r.agreement.share() >= agreement.share()
+    }) {
+        let pose = [
+            x + refined.shift.x,
+            y + refined.shift.y,
+            z + refined.shift.z,
+        ];
+        super::print_notes(
+            &[moved_scene(&refined, &agreement, pose, [roll, pitch, yaw])],
+            args.run.quiet,
+        );
+    }
     Ok((
         scored,
         map,
@@ -191,6 +211,41 @@ fn misplaced_scene(agreement: &SurfaceAgreement, scene: &std::path::Path) -> Str
         agreement.sampled,
         agreement.tolerance,
         scene.display()
+    )
+}
+
+/// The note for scans that fit the scene better moved: the move, how many
+/// directions the returns fix, and the `--scene-pose` that makes it.
+fn moved_scene(
+    refined: &Refinement,
+    agreement: &SurfaceAgreement,
+    xyz: [f64; 3],
+    rpy: [f64; 3],
+) -> String {
+    let s = refined.shift;
+    let free = match refined.fixed {
+        3 => String::new(),
+        fixed => format!(
+            "; the returns fix {fixed} of the 3 directions, and the scene is not moved along \
+             the others"
+        ),
+    };
+    let pose = xyz
+        .iter()
+        .chain(&rpy)
+        .map(|v| format!("{v:.4}"))
+        .collect::<Vec<_>>();
+    format!(
+        "note: the scans' returns fit the scene better moved by ({:.4}, {:.4}, {:.4}) m in \
+         the map frame ({:.1}% of the returns meet it within {} m of their range, against \
+         {:.1}% where it stands{free}): to score against it there, give --scene-pose {}",
+        s.x,
+        s.y,
+        s.z,
+        100.0 * refined.agreement.share(),
+        refined.agreement.tolerance,
+        100.0 * agreement.share(),
+        pose.join(",")
     )
 }
 

@@ -5,6 +5,7 @@
 
 pub mod consensus_truth;
 pub mod external;
+pub mod placement;
 pub mod recorded;
 pub mod runner;
 pub mod scoring;
