@@ -14,6 +14,32 @@ fn exact_quickstart(dir: &Path) -> Experiment {
     quickstart_with_profile(dir, exact, "")
 }
 
+/// The exact quickstart's scans of seed 3 as recorded nodes, with the
+/// scene's pose in their map frame, the maximum range and a tolerance of
+/// two cells.
+struct ExactScans {
+    experiment: Experiment,
+    nodes: Vec<ScanNode>,
+    placed: Isometry3,
+    max_range: Option<f64>,
+    tolerance: f64,
+}
+
+fn exact_scans(dir: &Path) -> ExactScans {
+    let experiment = exact_quickstart(dir);
+    let seed = 3;
+    let run = simulate(&experiment, seed, |_| {}).unwrap();
+    let offset = experiment.map_offset(seed);
+    let nodes = scan_nodes(&experiment.mapper_view(), &run.scans, &offset);
+    ExactScans {
+        nodes,
+        placed: Isometry3::translation(offset.x, offset.y, offset.z),
+        max_range: Some(experiment.scanner().max_range),
+        tolerance: 2.0 * experiment.resolution(),
+        experiment,
+    }
+}
+
 #[test]
 fn returns_agree_with_the_scene_where_it_stands_and_not_where_it_is_misplaced() {
     // The exact quickstart's returns are where its rays first meet the
@@ -21,13 +47,13 @@ fn returns_agree_with_the_scene_where_it_stands_and_not_where_it_is_misplaced() 
     // scene raised 3 cm (three cells) stands in the rays' way before the
     // table top's returns, and the share falls below the warning.
     let dir = tempfile::tempdir().unwrap();
-    let experiment = exact_quickstart(dir.path());
-    let seed = 3;
-    let run = simulate(&experiment, seed, |_| {}).unwrap();
-    let offset = experiment.map_offset(seed);
-    let nodes = scan_nodes(&experiment.mapper_view(), &run.scans, &offset);
-    let max_range = Some(experiment.scanner().max_range);
-    let tolerance = 2.0 * experiment.resolution();
+    let ExactScans {
+        experiment,
+        nodes,
+        placed,
+        max_range,
+        tolerance,
+    } = exact_scans(dir.path());
     let agreement = |map_from_scene: &Isometry3| {
         surface_agreement(
             experiment.scene(),
@@ -37,7 +63,6 @@ fn returns_agree_with_the_scene_where_it_stands_and_not_where_it_is_misplaced() 
             tolerance,
         )
     };
-    let placed = Isometry3::translation(offset.x, offset.y, offset.z);
     let here = agreement(&placed);
     assert!(here.sampled > 5_000, "{here:?}");
     assert!(here.share() > 0.99, "{here:?}");
@@ -53,14 +78,13 @@ fn a_misplaced_scene_is_moved_back_onto_the_returns() {
     // fix (the table top, the objects' sides: all three here), to well
     // inside a cell, and the returns agree with it again.
     let dir = tempfile::tempdir().unwrap();
-    let experiment = exact_quickstart(dir.path());
-    let seed = 3;
-    let run = simulate(&experiment, seed, |_| {}).unwrap();
-    let offset = experiment.map_offset(seed);
-    let nodes = scan_nodes(&experiment.mapper_view(), &run.scans, &offset);
-    let max_range = Some(experiment.scanner().max_range);
-    let tolerance = 2.0 * experiment.resolution();
-    let placed = Isometry3::translation(offset.x, offset.y, offset.z);
+    let ExactScans {
+        experiment,
+        nodes,
+        placed,
+        max_range,
+        tolerance,
+    } = exact_scans(dir.path());
     let misplacement = Vector3::new(0.02, -0.015, 0.03);
     let misplaced = nalgebra::Translation3::from(misplacement) * placed;
     let before = surface_agreement(experiment.scene(), &misplaced, &nodes, max_range, tolerance);
