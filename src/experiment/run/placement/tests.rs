@@ -25,6 +25,33 @@ struct ExactScans {
     tolerance: f64,
 }
 
+impl ExactScans {
+    /// [`surface_agreement`] with the scene at `map_from_scene`.
+    fn agreement(&self, map_from_scene: &Isometry3) -> SurfaceAgreement {
+        let scene = self.experiment.scene();
+        surface_agreement(
+            scene,
+            map_from_scene,
+            &self.nodes,
+            self.max_range,
+            self.tolerance,
+        )
+    }
+
+    /// [`refine_translation`] from the scene at `map_from_scene`.
+    fn refine(&self, map_from_scene: &Isometry3) -> Refinement {
+        let scene = self.experiment.scene();
+        refine_translation(
+            scene,
+            map_from_scene,
+            &self.nodes,
+            self.max_range,
+            self.tolerance,
+        )
+        .expect("the returns pull the scene")
+    }
+}
+
 fn exact_scans(dir: &Path) -> ExactScans {
     let experiment = exact_quickstart(dir);
     let seed = 3;
@@ -47,26 +74,12 @@ fn returns_agree_with_the_scene_where_it_stands_and_not_where_it_is_misplaced() 
     // scene raised 3 cm (three cells) stands in the rays' way before the
     // table top's returns, and the share falls below the warning.
     let dir = tempfile::tempdir().unwrap();
-    let ExactScans {
-        experiment,
-        nodes,
-        placed,
-        max_range,
-        tolerance,
-    } = exact_scans(dir.path());
-    let agreement = |map_from_scene: &Isometry3| {
-        surface_agreement(
-            experiment.scene(),
-            map_from_scene,
-            &nodes,
-            max_range,
-            tolerance,
-        )
-    };
-    let here = agreement(&placed);
+    let scans = exact_scans(dir.path());
+    let placed = scans.placed;
+    let here = scans.agreement(&placed);
     assert!(here.sampled > 5_000, "{here:?}");
     assert!(here.share() > 0.99, "{here:?}");
-    let raised = agreement(&(Isometry3::translation(0.0, 0.0, 0.03) * placed));
+    let raised = scans.agreement(&(Isometry3::translation(0.0, 0.0, 0.03) * placed));
     assert_eq!(raised.sampled, here.sampled);
     assert!(raised.share() < AGREEMENT_WARNING - 0.2, "{raised:?}");
 }
@@ -78,33 +91,20 @@ fn a_misplaced_scene_is_moved_back_onto_the_returns() {
     // fix (the table top, the objects' sides: all three here), to well
     // inside a cell, and the returns agree with it again.
     let dir = tempfile::tempdir().unwrap();
-    let ExactScans {
-        experiment,
-        nodes,
-        placed,
-        max_range,
-        tolerance,
-    } = exact_scans(dir.path());
+    let scans = exact_scans(dir.path());
+    let (placed, cell) = (scans.placed, scans.experiment.resolution());
     let misplacement = Vector3::new(0.02, -0.015, 0.03);
     let misplaced = nalgebra::Translation3::from(misplacement) * placed;
-    let before = surface_agreement(experiment.scene(), &misplaced, &nodes, max_range, tolerance);
-    let refined =
-        refine_translation(experiment.scene(), &misplaced, &nodes, max_range, tolerance).unwrap();
+    let before = scans.agreement(&misplaced);
+    let refined = scans.refine(&misplaced);
     assert!(before.share() < 0.5, "{before:?}");
     assert_eq!(refined.fixed, 3, "{refined:?}");
     let left = refined.shift + misplacement;
-    assert!(
-        left.norm() < 0.1 * experiment.resolution(),
-        "{refined:?}: {left}"
-    );
+    assert!(left.norm() < 0.1 * cell, "{refined:?}: {left}");
     assert!(refined.agreement.share() > 0.99, "{refined:?}");
     // In place, it stays.
-    let stays =
-        refine_translation(experiment.scene(), &placed, &nodes, max_range, tolerance).unwrap();
-    assert!(
-        stays.shift.norm() < 1e-3 * experiment.resolution(),
-        "{stays:?}"
-    );
+    let stays = scans.refine(&placed);
+    assert!(stays.shift.norm() < 1e-3 * cell, "{stays:?}");
 }
 
 #[test]
