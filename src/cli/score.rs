@@ -6,7 +6,7 @@ use super::{with_threads, ScoreArgs};
 use crate::error::{Error, Result};
 use crate::experiment::output::wrong_cells::{write_wrong_cells, ErrorsFormat};
 use crate::experiment::run::placement::{
-    refine_translation, surface_agreement, Refinement, SurfaceAgreement, AGREEMENT_WARNING,
+    Placement, Refinement, SurfaceAgreement, AGREEMENT_WARNING,
 };
 use crate::experiment::run::recorded::read_scan_graph;
 use crate::experiment::run::runner::append_row;
@@ -149,23 +149,17 @@ fn against_scene(
             list_wrong,
         )
     })??;
-    let agreement = surface_agreement(
+    let placement = Placement::new(
         &scene_data,
-        &map_from_scene,
         &nodes,
         args.max_range,
         AGREEMENT_CELLS * map.resolution(),
     );
+    let agreement = placement.agreement(&map_from_scene);
     if agreement.share() < AGREEMENT_WARNING {
         super::print_notes(&[misplaced_scene(&agreement, scene)], args.run.quiet);
     }
-    let refined = refine_translation(
-        &scene_data,
-        &map_from_scene,
-        &nodes,
-        args.max_range,
-        AGREEMENT_CELLS * map.resolution(),
-    );
+    let refined = placement.refine(&map_from_scene);
     if let Some(refined) = refined.filter(|r| {
         r.shift.norm() > 0.5 * map.resolution() && r.agreement.share() >= agreement.share()
     }) {

@@ -33,7 +33,7 @@ impl SurfaceAgreement {
     }
 }
 
-/// The most returns [`surface_agreement`] looks at.
+/// The most returns a [`Placement`] looks at.
 pub const AGREEMENT_SAMPLE: usize = 20_000;
 
 /// Below this share of returns near the scene's surfaces, `sigmap score
@@ -41,33 +41,58 @@ pub const AGREEMENT_SAMPLE: usize = 20_000;
 /// modelled workcell puts nearly all its returns on the model.
 pub const AGREEMENT_WARNING: f64 = 0.8;
 
-/// [`SurfaceAgreement`] of the recorded returns (points within `max_range`,
-/// as [`recorded_rays`] counts hits) with `scene` placed by `map_from_scene`:
-/// a return agrees when its ray, cast from its scan's origin on the scene,
-/// first meets a surface within `tolerance` of its recorded range (not
-/// before, as through a misplaced solid, nor never). At most
-/// [`AGREEMENT_SAMPLE`] returns, taken at an even stride in file order (the
-/// same on every run).
-pub fn surface_agreement(
-    scene: &Scene,
-    map_from_scene: &Isometry3,
-    nodes: &[ScanNode],
-    max_range: Option<f64>,
+/// The recorded returns (points within `max_range`, as [`recorded_rays`]
+/// counts hits) a scene's placement is checked against: at most
+/// [`AGREEMENT_SAMPLE`] of them, taken at an even stride in file order (the
+/// same on every run), and how near its range a return's ray must meet the
+/// scene to agree with it.
+pub struct Placement<'a> {
+    scene: &'a Scene,
+    returns: Vec<Return>,
     tolerance: f64,
-) -> SurfaceAgreement {
-    let rays = sampled_returns(nodes, max_range);
-    let scene_from_map = map_from_scene.inverse();
-    let near = rays
-        .iter()
-        .filter(|ray| {
-            first_surface(scene, &scene_from_map, ray, Vector3::zeros(), tolerance)
+}
+
+impl<'a> Placement<'a> {
+    /// The returns of `nodes` against `scene`, agreeing within `tolerance`.
+    pub fn new(
+        scene: &'a Scene,
+        nodes: &[ScanNode],
+        max_range: Option<f64>,
+        tolerance: f64,
+    ) -> Self {
+        Self {
+            scene,
+            returns: sampled_returns(nodes, max_range),
+            tolerance,
+        }
+    }
+
+    /// [`SurfaceAgreement`] with the scene placed by `map_from_scene`: a
+    /// return agrees when its ray, cast from its scan's origin on the
+    /// scene, first meets a surface within the tolerance of its recorded
+    /// range (not before, as through a misplaced solid, nor never).
+    pub fn agreement(&self, map_from_scene: &Isometry3) -> SurfaceAgreement {
+        let scene_from_map = map_from_scene.inverse();
+        let tolerance = self.tolerance;
+        let near = self
+            .returns
+            .iter()
+            .filter(|ray| {
+                first_surface(
+                    self.scene,
+                    &scene_from_map,
+                    ray,
+                    Vector3::zeros(),
+                    tolerance,
+                )
                 .is_some_and(|miss| miss.abs() <= tolerance)
-        })
-        .count();
-    SurfaceAgreement {
-        sampled: rays.len(),
-        near,
-        tolerance,
+            })
+            .count();
+        SurfaceAgreement {
+            sampled: self.returns.len(),
+            near,
+            tolerance,
+        }
     }
 }
 
@@ -133,71 +158,67 @@ const REFINE_STEPS: usize = 8;
 /// and still pull the scene: farther ones are other objects.
 const REFINE_REACH: f64 = 8.0;
 
-/// The scene's translation that brings the recorded returns' rays onto it
-/// (least squares on each ray's first surface less its range, over the
-/// returns within [`REFINE_REACH`] tolerances; derivatives by moving the
-/// scene a tenth of a tolerance along each axis). A direction the returns
-/// do not fix (a single plane leaves two) is left unmoved. `None` when no
-/// return lies near enough to the scene to pull it.
-pub fn refine_translation(
-    scene: &Scene,
-    map_from_scene: &Isometry3,
-    nodes: &[ScanNode],
-    max_range: Option<f64>,
-    tolerance: f64,
-) -> Option<Refinement> {
-    let rays = sampled_returns(nodes, max_range);
-    let scene_from_map = map_from_scene.inverse();
-    let reach = REFINE_REACH * tolerance;
-    let step = 0.1 * tolerance;
-    let mut shift = Vector3::zeros();
-    let mut fixed = 0;
-    for _ in 0..REFINE_STEPS {
-        let (mut normal, mut gradient, mut used) = (Matrix3::zeros(), Vector3::zeros(), 0);
-        for ray in &rays {
-            let at = |s: Vector3| first_surface(scene, &scene_from_map, ray, s, reach + step);
-            let Some(miss) = at(shift).filter(|m| m.abs() <= reach) else {
-                continue;
-            };
-            let mut slope = Vector3::zeros();
-            let moved = (0..3).all(|axis| {
-                let along = at(shift + Vector3::ith(axis, step));
-                along.map(|m| slope[axis] = (m - miss) / step).is_some()
-            });
-            // A ray that slides off an edge when moved says nothing here.
-            if !moved || slope.norm() > 10.0 {
-                continue;
+impl Placement<'_> {
+    /// The scene's translation that brings the recorded returns' rays onto it
+    /// (least squares on each ray's first surface less its range, over the
+    /// returns within [`REFINE_REACH`] tolerances; derivatives by moving the
+    /// scene a tenth of a tolerance along each axis). A direction the returns
+    /// do not fix (a single plane leaves two) is left unmoved. `None` when no
+    /// return lies near enough to the scene to pull it.
+    pub fn refine(&self, map_from_scene: &Isometry3) -> Option<Refinement> {
+        let (scene, tolerance) = (self.scene, self.tolerance);
+        let scene_from_map = map_from_scene.inverse();
+        let reach = REFINE_REACH * tolerance;
+        let step = 0.1 * tolerance;
+        let mut shift = Vector3::zeros();
+        let mut fixed = 0;
+        for _ in 0..REFINE_STEPS {
+            let (mut normal, mut gradient, mut used) = (Matrix3::zeros(), Vector3::zeros(), 0);
+            for ray in &self.returns {
+                let at = |s: Vector3| first_surface(scene, &scene_from_map, ray, s, reach + step);
+                let Some(miss) = at(shift).filter(|m| m.abs() <= reach) else {
+                    continue;
+                };
+                let mut slope = Vector3::zeros();
+                let moved = (0..3).all(|axis| {
+                    let along = at(shift + Vector3::ith(axis, step));
+                    along.map(|m| slope[axis] = (m - miss) / step).is_some()
+                });
+                // A ray that slides off an edge when moved says nothing here.
+                if !moved || slope.norm() > 10.0 {
+                    continue;
+                }
+                normal += slope * slope.transpose();
+                gradient += slope * miss;
+                used += 1;
             }
-            normal += slope * slope.transpose();
-            gradient += slope * miss;
-            used += 1;
-        }
-        if used < 3 {
-            return None;
-        }
-        let (values, vectors) = crate::geometry::symmetric_eigen(&normal);
-        let largest = values.max();
-        let mut delta = Vector3::zeros();
-        fixed = 0;
-        for k in 0..3 {
-            // A direction a thousandth as constrained as the best is free.
-            if values[k] > 1e-3 * largest {
-                let v = vectors.column(k).into_owned();
-                delta -= v * (v.dot(&gradient) / values[k]);
-                fixed += 1;
+            if used < 3 {
+                return None;
+            }
+            let (values, vectors) = crate::geometry::symmetric_eigen(&normal);
+            let largest = values.max();
+            let mut delta = Vector3::zeros();
+            fixed = 0;
+            for k in 0..3 {
+                // A direction a thousandth as constrained as the best is free.
+                if values[k] > 1e-3 * largest {
+                    let v = vectors.column(k).into_owned();
+                    delta -= v * (v.dot(&gradient) / values[k]);
+                    fixed += 1;
+                }
+            }
+            shift += delta;
+            if delta.norm() < 1e-3 * tolerance {
+                break;
             }
         }
-        shift += delta;
-        if delta.norm() < 1e-3 * tolerance {
-            break;
-        }
+        let moved = nalgebra::Translation3::from(shift) * map_from_scene;
+        Some(Refinement {
+            shift,
+            fixed,
+            agreement: self.agreement(&moved),
+        })
     }
-    let moved = nalgebra::Translation3::from(shift) * map_from_scene;
-    Some(Refinement {
-        shift,
-        fixed,
-        agreement: surface_agreement(scene, &moved, nodes, max_range, tolerance),
-    })
 }
 
 #[cfg(test)]

@@ -26,29 +26,10 @@ struct ExactScans {
 }
 
 impl ExactScans {
-    /// [`surface_agreement`] with the scene at `map_from_scene`.
-    fn agreement(&self, map_from_scene: &Isometry3) -> SurfaceAgreement {
+    /// The scans' returns against the quickstart's scene.
+    fn placement(&self) -> Placement<'_> {
         let scene = self.experiment.scene();
-        surface_agreement(
-            scene,
-            map_from_scene,
-            &self.nodes,
-            self.max_range,
-            self.tolerance,
-        )
-    }
-
-    /// [`refine_translation`] from the scene at `map_from_scene`.
-    fn refine(&self, map_from_scene: &Isometry3) -> Refinement {
-        let scene = self.experiment.scene();
-        refine_translation(
-            scene,
-            map_from_scene,
-            &self.nodes,
-            self.max_range,
-            self.tolerance,
-        )
-        .expect("the returns pull the scene")
+        Placement::new(scene, &self.nodes, self.max_range, self.tolerance)
     }
 }
 
@@ -76,10 +57,12 @@ fn returns_agree_with_the_scene_where_it_stands_and_not_where_it_is_misplaced() 
     let dir = tempfile::tempdir().unwrap();
     let scans = exact_scans(dir.path());
     let placed = scans.placed;
-    let here = scans.agreement(&placed);
+    let here = scans.placement().agreement(&placed);
     assert!(here.sampled > 5_000, "{here:?}");
     assert!(here.share() > 0.99, "{here:?}");
-    let raised = scans.agreement(&(Isometry3::translation(0.0, 0.0, 0.03) * placed));
+    let raised = scans
+        .placement()
+        .agreement(&(Isometry3::translation(0.0, 0.0, 0.03) * placed));
     assert_eq!(raised.sampled, here.sampled);
     assert!(raised.share() < AGREEMENT_WARNING - 0.2, "{raised:?}");
 }
@@ -95,15 +78,15 @@ fn a_misplaced_scene_is_moved_back_onto_the_returns() {
     let (placed, cell) = (scans.placed, scans.experiment.resolution());
     let misplacement = Vector3::new(0.02, -0.015, 0.03);
     let misplaced = nalgebra::Translation3::from(misplacement) * placed;
-    let before = scans.agreement(&misplaced);
-    let refined = scans.refine(&misplaced);
+    let before = scans.placement().agreement(&misplaced);
+    let refined = scans.placement().refine(&misplaced).unwrap();
     assert!(before.share() < 0.5, "{before:?}");
     assert_eq!(refined.fixed, 3, "{refined:?}");
     let left = refined.shift + misplacement;
     assert!(left.norm() < 0.1 * cell, "{refined:?}: {left}");
     assert!(refined.agreement.share() > 0.99, "{refined:?}");
     // In place, it stays.
-    let stays = scans.refine(&placed);
+    let stays = scans.placement().refine(&placed).unwrap();
     assert!(stays.shift.norm() < 1e-3 * cell, "{stays:?}");
 }
 
@@ -139,7 +122,9 @@ fn a_lone_plane_fixes_only_the_direction_across_it() {
     let nodes = [node];
     let tolerance = 0.02;
     let misplaced = Isometry3::translation(0.03, 0.02, 0.01);
-    let refined = refine_translation(&scene, &misplaced, &nodes, None, tolerance).unwrap();
+    let refined = Placement::new(&scene, &nodes, None, tolerance)
+        .refine(&misplaced)
+        .unwrap();
     assert_eq!(refined.fixed, 1, "{refined:?}");
     let expected = Vector3::new(0.0, 0.0, -0.01);
     assert!((refined.shift - expected).norm() < 1e-6, "{refined:?}");
