@@ -503,17 +503,36 @@ fn score_against_a_scene_with_recorded_scans() {
     // The note moves it back down: the pose it gives draws no warning and
     // no further move, and lies within a few millimetres of where the
     // scene stood (the scans' registration error).
-    let suggested = raised
-        .split("give --scene-pose ")
-        .nth(1)
-        .and_then(|rest| rest.split_whitespace().next())
-        .unwrap_or_else(|| panic!("no suggested pose: {raised}"));
-    let z: f64 = suggested.split(',').nth(2).unwrap().parse().unwrap();
-    assert!(z.abs() < 0.01, "{suggested}");
-    let back = warned(suggested);
+    let suggested = |stderr: &str| -> Vec<f64> {
+        stderr
+            .split("give --scene-pose ")
+            .nth(1)
+            .and_then(|rest| rest.split_whitespace().next())
+            .unwrap_or_else(|| panic!("no suggested pose: {stderr}"))
+            .split(',')
+            .map(|v| v.parse().unwrap())
+            .collect()
+    };
+    let pose = suggested(&raised);
+    assert!(pose[2].abs() < 0.01, "{pose:?}");
+    let text = |pose: &[f64]| {
+        pose.iter()
+            .map(f64::to_string)
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    let back = warned(&text(&pose));
     assert!(
         !back.contains("warning") && !back.contains("note"),
         "{back}"
+    );
+    // Turned 0.1 rad about z, the note turns it back, to the same pose.
+    let turned = suggested(&warned("0,0,0,0,0,0.1"));
+    assert!(turned[5].abs() < 0.01, "{turned:?}");
+    let apart = pose.iter().zip(&turned).map(|(a, b)| (a - b).abs());
+    assert!(
+        apart.fold(0.0, f64::max) < 1e-3,
+        "{pose:?} against {turned:?}"
     );
     // Bad input: one line, exit 2.
     for (args, says) in [

@@ -136,8 +136,8 @@ fn against_scene(
     // OctoMap's clamp, as a map file written by OctoMap or sigmap keeps it.
     let map = read_octree(&args.map, Clamp::OCTOMAP)
         .map_err(|e| e.context("the map (first argument): "))?;
-    let [x, y, z, roll, pitch, yaw] = args.scene_pose.unwrap_or([0.0; 6]);
-    let map_from_scene = Pose::new([x, y, z], [roll, pitch, yaw]).to_isometry();
+    let map_from_scene =
+        Pose::from_params(&args.scene_pose.unwrap_or([0.0; 6]).into()).to_isometry();
     let scored = with_threads(args.run.threads, || {
         score_against_scene(
             &map,
@@ -161,17 +161,10 @@ fn against_scene(
     }
     let refined = placement.refine(&map_from_scene);
     if let Some(refined) = refined.filter(|r| {
-        r.shift.norm() > 0.5 * map.resolution() && r.agreement.share() >= agreement.share()
+        r.largest_move > 0.5 * map.resolution() && r.agreement.share() >= agreement.share()
     }) {
-        let pose = [
-            x + refined.shift.x,
-            y + refined.shift.y,
-            z + refined.shift.z,
-        ];
-        super::print_notes(
-            &[moved_scene(&refined, &agreement, pose, [roll, pitch, yaw])],
-            args.run.quiet,
-        );
+        let pose = Pose::from_isometry(&(refined.correction * map_from_scene));
+        super::print_notes(&[moved_scene(&refined, &agreement, &pose)], args.run.quiet);
     }
     Ok((
         scored,
@@ -209,33 +202,33 @@ fn misplaced_scene(agreement: &SurfaceAgreement, scene: &std::path::Path) -> Str
 }
 
 /// The note for scans that fit the scene better moved: the move, how many
-/// directions the returns fix, and the `--scene-pose` that makes it.
-fn moved_scene(
-    refined: &Refinement,
-    agreement: &SurfaceAgreement,
-    xyz: [f64; 3],
-    rpy: [f64; 3],
-) -> String {
-    let s = refined.shift;
+/// degrees of freedom the returns fix, and the `--scene-pose` that makes it.
+fn moved_scene(refined: &Refinement, agreement: &SurfaceAgreement, pose: &Pose) -> String {
+    let s = refined.centroid_shift;
+    let turn = refined.correction.rotation.angle().to_degrees();
     let free = match refined.fixed {
-        3 => String::new(),
+        6 => String::new(),
         fixed => format!(
-            "; the returns fix {fixed} of the 3 directions, and the scene is not moved along \
-             the others"
+            "; the returns fix {fixed} of the 6 degrees of freedom, and the scene is not \
+             moved along the others"
         ),
     };
-    let pose = xyz
+    let pose = pose
+        .xyz
         .iter()
-        .chain(&rpy)
+        .chain(&pose.rpy)
         .map(|v| format!("{v:.4}"))
         .collect::<Vec<_>>();
     format!(
-        "note: the scans' returns fit the scene better moved by ({:.4}, {:.4}, {:.4}) m in \
-         the map frame ({:.1}% of the returns meet it within {} m of their range, against \
-         {:.1}% where it stands{free}): to score against it there, give --scene-pose {}",
+        "note: the scans' returns fit the scene better moved by ({:.4}, {:.4}, {:.4}) m at \
+         their centroid and turned by {turn:.2} degrees about it, in the map frame (no return \
+         moves more than {:.4} m; {:.1}% of the returns meet it within {} m of their range, \
+         against {:.1}% where it stands{free}): to score against it there, give \
+         --scene-pose {}",
         s.x,
         s.y,
         s.z,
+        refined.largest_move,
         100.0 * refined.agreement.share(),
         refined.agreement.tolerance,
         100.0 * agreement.share(),

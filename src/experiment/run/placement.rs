@@ -1,9 +1,9 @@
 //! Where a scene stands against recorded scans (`sigmap score --scene`):
 //! how many of the scans' returns the placed scene meets at their range,
-//! and the translation that would bring it onto them.
+//! and the rigid move that would bring it onto them.
 
 use super::scoring::recorded_rays;
-use crate::geometry::{Isometry3, Matrix3, Point3, Vector3};
+use crate::geometry::{Isometry3, Matrix6, Point3, Vector3, Vector6};
 use crate::mapping::scan_graph::ScanNode;
 use crate::sim::scene::Scene;
 
@@ -78,14 +78,8 @@ impl<'a> Placement<'a> {
             .returns
             .iter()
             .filter(|ray| {
-                first_surface(
-                    self.scene,
-                    &scene_from_map,
-                    ray,
-                    Vector3::zeros(),
-                    tolerance,
-                )
-                .is_some_and(|miss| miss.abs() <= tolerance)
+                first_surface(self.scene, &scene_from_map, ray, tolerance)
+                    .is_some_and(|miss| miss.abs() <= tolerance)
             })
             .count();
         SurfaceAgreement {
@@ -121,68 +115,122 @@ fn sampled_returns(nodes: &[ScanNode], max_range: Option<f64>) -> Vec<Return> {
         .collect()
 }
 
-/// Where `ray`, cast on the scene moved by `shift` (map frame), first meets
-/// a surface, less the recorded range; `None` when it meets none before
-/// `slack` past its range. Moving the scene by `shift` is casting from
-/// the origin moved by `−shift`.
+/// Where `ray`, cast on the scene placed by `scene_from_map`, first meets a
+/// surface, less the recorded range; `None` when it meets none before
+/// `slack` past its range.
 fn first_surface(
     scene: &Scene,
     scene_from_map: &Isometry3,
     ray: &Return,
-    shift: Vector3,
     slack: f64,
 ) -> Option<f64> {
-    let origin = scene_from_map * (ray.origin - shift);
+    let origin = scene_from_map * ray.origin;
     let direction = scene_from_map * ray.direction;
     scene
         .cast_ray(&origin, &direction, ray.range + slack)
         .map(|(first, _)| first - ray.range)
 }
 
-/// The translation (map frame) that best moves the scene onto the recorded
+/// The rigid move (map frame) that best brings the scene onto the recorded
 /// returns, where the returns fix it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Refinement {
-    /// The scene's move (m), zero along the axes the returns leave free.
-    pub shift: Vector3,
-    /// How many of the three directions the returns fix.
+    /// The move: the scene fits best placed by `correction * map_from_scene`.
+    /// It is the identity along the degrees of freedom the returns leave free.
+    pub correction: Isometry3,
+    /// How far the move takes the sampled returns' centroid (m).
+    pub centroid_shift: Vector3,
+    /// The farthest the move takes any sampled return's end point (m).
+    pub largest_move: f64,
+    /// How many of the six degrees of freedom (three translations, three
+    /// turns about the returns' centroid) the returns fix.
     pub fixed: usize,
     /// The agreement with the scene moved.
     pub agreement: SurfaceAgreement,
 }
 
 /// Gauss–Newton steps at most.
-const REFINE_STEPS: usize = 8;
+const REFINE_STEPS: usize = 12;
 
 /// How far (in tolerances) a return's first surface may lie from its range
 /// and still pull the scene: farther ones are other objects.
 const REFINE_REACH: f64 = 8.0;
 
+/// The moves a refinement is made of, in metres: a translation, and a turn
+/// about `pivot` measured by how far it takes a point `lever` from its axis
+/// (so that a turn and a translation of equal size move the returns alike,
+/// and one threshold judges which the returns fix).
+struct Moves {
+    pivot: Vector3,
+    lever: f64,
+}
+
+impl Moves {
+    /// The move of parameters `p`: translation `p[0..3]`, turn `p[3..6] /
+    /// lever` (axis-angle) about the pivot.
+    fn of(&self, p: &Vector6) -> Isometry3 {
+        let turn =
+            nalgebra::UnitQuaternion::from_scaled_axis(Vector3::new(p[3], p[4], p[5]) / self.lever);
+        let to_pivot = nalgebra::Translation3::from(self.pivot + Vector3::new(p[0], p[1], p[2]));
+        let from_pivot = nalgebra::Translation3::from(-self.pivot);
+        to_pivot * turn * from_pivot
+    }
+}
+
 impl Placement<'_> {
-    /// The scene's translation that brings the recorded returns' rays onto it
-    /// (least squares on each ray's first surface less its range, over the
-    /// returns within [`REFINE_REACH`] tolerances; derivatives by moving the
-    /// scene a tenth of a tolerance along each axis). A direction the returns
-    /// do not fix (a single plane leaves two) is left unmoved. `None` when no
+    /// The rigid move of the scene (map frame) that brings the recorded
+    /// returns' rays onto it: least squares on each ray's first surface less
+    /// its range, over the returns within [`REFINE_REACH`] tolerances, in the
+    /// three translations and the three turns about the returns' centroid;
+    /// derivatives by moving the scene a tenth of a tolerance along each (a
+    /// turn by the angle that moves a point at the returns' RMS distance
+    /// from the centroid that far). A degree of freedom the returns do not
+    /// fix (a single plane leaves three) is left unmoved. `None` when no
     /// return lies near enough to the scene to pull it.
     pub fn refine(&self, map_from_scene: &Isometry3) -> Option<Refinement> {
         let (scene, tolerance) = (self.scene, self.tolerance);
-        let scene_from_map = map_from_scene.inverse();
+        let ends: Vec<Point3> = self
+            .returns
+            .iter()
+            .map(|ray| ray.origin + ray.direction * ray.range)
+            .collect();
+        if ends.is_empty() {
+            return None;
+        }
+        let count = ends.len() as f64;
+        let pivot = ends.iter().map(|p| p.coords).sum::<Vector3>() / count;
+        let spread = (ends
+            .iter()
+            .map(|p| (p.coords - pivot).norm_squared())
+            .sum::<f64>()
+            / count)
+            .sqrt();
+        let moves = Moves {
+            pivot,
+            lever: spread.max(tolerance),
+        };
         let reach = REFINE_REACH * tolerance;
         let step = 0.1 * tolerance;
-        let mut shift = Vector3::zeros();
+        let mut correction = Isometry3::identity();
         let mut fixed = 0;
         for _ in 0..REFINE_STEPS {
-            let (mut normal, mut gradient, mut used) = (Matrix3::zeros(), Vector3::zeros(), 0);
+            // The scene where it stands now, and moved a step along each
+            // degree of freedom: cast from these frames.
+            let placed = |m: &Isometry3| (m * map_from_scene).inverse();
+            let here = placed(&correction);
+            let stepped: [Isometry3; 6] =
+                std::array::from_fn(|k| placed(&(moves.of(&Vector6::ith(k, step)) * correction)));
+            let (mut normal, mut gradient, mut used) = (Matrix6::zeros(), Vector6::zeros(), 0);
             for ray in &self.returns {
-                let at = |s: Vector3| first_surface(scene, &scene_from_map, ray, s, reach + step);
-                let Some(miss) = at(shift).filter(|m| m.abs() <= reach) else {
+                let Some(miss) =
+                    first_surface(scene, &here, ray, reach + step).filter(|m| m.abs() <= reach)
+                else {
                     continue;
                 };
-                let mut slope = Vector3::zeros();
-                let moved = (0..3).all(|axis| {
-                    let along = at(shift + Vector3::ith(axis, step));
-                    along.map(|m| slope[axis] = (m - miss) / step).is_some()
+                let mut slope = Vector6::zeros();
+                let moved = stepped.iter().enumerate().all(|(k, frame)| {
+                    let along = first_surface(scene, frame, ray, reach + step);
+                    along.map(|m| slope[k] = (m - miss) / step).is_some()
                 });
                 // A ray that slides off an edge when moved says nothing here.
                 if !moved || slope.norm() > 10.0 {
@@ -192,31 +240,36 @@ impl Placement<'_> {
                 gradient += slope * miss;
                 used += 1;
             }
-            if used < 3 {
+            if used < 6 {
                 return None;
             }
-            let (values, vectors) = crate::geometry::symmetric_eigen(&normal);
-            let largest = values.max();
-            let mut delta = Vector3::zeros();
+            let eigen = nalgebra::SymmetricEigen::new(normal);
+            let largest = eigen.eigenvalues.max();
+            let mut delta = Vector6::zeros();
             fixed = 0;
-            for k in 0..3 {
+            for k in 0..6 {
                 // A direction a thousandth as constrained as the best is free.
-                if values[k] > 1e-3 * largest {
-                    let v = vectors.column(k).into_owned();
-                    delta -= v * (v.dot(&gradient) / values[k]);
+                if eigen.eigenvalues[k] > 1e-3 * largest {
+                    let v = eigen.eigenvectors.column(k).into_owned();
+                    delta -= v * (v.dot(&gradient) / eigen.eigenvalues[k]);
                     fixed += 1;
                 }
             }
-            shift += delta;
+            correction = moves.of(&delta) * correction;
             if delta.norm() < 1e-3 * tolerance {
                 break;
             }
         }
-        let moved = nalgebra::Translation3::from(shift) * map_from_scene;
+        let largest_move = ends
+            .iter()
+            .map(|p| (correction * p - p).norm())
+            .fold(0.0, f64::max);
         Some(Refinement {
-            shift,
+            correction,
+            centroid_shift: correction * Point3::from(pivot) - Point3::from(pivot),
+            largest_move,
             fixed,
-            agreement: self.agreement(&moved),
+            agreement: self.agreement(&(correction * map_from_scene)),
         })
     }
 }
