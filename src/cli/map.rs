@@ -5,7 +5,7 @@
 use super::{progress_bar, resolution_arg, with_threads, MapArgs};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::KeyBox;
-use crate::experiment::run::recorded::{map_recorded, read_scan_graph, RecordedOptions};
+use crate::experiment::run::recorded::{map_recorded, read_scans, RecordedOptions};
 use crate::experiment::run::runner::truth_reference;
 use crate::experiment::{self, write_rays, Experiment, Overrides};
 use crate::mapping::build_map;
@@ -174,7 +174,11 @@ fn run_recorded(args: &MapArgs) -> Result<()> {
         step => step.map(f64::to_radians),
     };
     let profile = ErrorProfile::load(profile)?;
-    let nodes = read_scan_graph(scans)?;
+    let depth = args.depth.options();
+    let (nodes, notes) = read_scans(scans, &depth)?;
+    super::print_notes(&notes, args.run.quiet);
+    // Depth images bin at their central pixel's angle, not at the median.
+    let angular_step = angular_step.or_else(|| scans.is_dir().then(|| depth.camera.angular_step()));
     let options = RecordedOptions {
         method: args.method,
         resolution,

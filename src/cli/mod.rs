@@ -199,9 +199,10 @@ pub(crate) struct MapArgs {
     #[arg(long, conflicts_with = "scans")]
     export_rays: Option<PathBuf>,
     /// Map scans recorded elsewhere: an OctoMap ScanGraph (.graph, e.g. from
-    /// log2graph or `sigmap export`) or the plain-text log log2graph reads
+    /// log2graph or `sigmap export`), the plain-text log log2graph reads
     /// (`NODE x y z roll pitch yaw` lines, each followed by `x y z` lines),
-    /// points in each node's sensor frame.
+    /// points in each node's sensor frame, or a folder of depth images in
+    /// the TUM RGB-D layout (depth.txt, groundtruth.txt, depth/*.png).
     #[arg(long, conflicts_with = "experiment", requires = "profile")]
     scans: Option<PathBuf>,
     /// With --scans: the error profile (TOML) the scans are believed with;
@@ -235,7 +236,47 @@ pub(crate) struct MapArgs {
     #[arg(long, value_parser = risk_parser)]
     risk: Option<RiskArg>,
     #[command(flatten)]
+    depth: DepthArgs,
+    #[command(flatten)]
     run: RunOptions,
+}
+
+/// How `--scans DIR`, a folder of depth images, is read.
+#[derive(Args, Debug)]
+pub(crate) struct DepthArgs {
+    /// With --scans DIR (depth images): the camera's fx,fy,cx,cy in pixels
+    /// [default: 525,525,319.5,239.5, the TUM RGB-D benchmark's].
+    #[arg(long, requires = "scans", value_parser = parse::parse_intrinsics, allow_hyphen_values = true)]
+    intrinsics: Option<[f64; 4]>,
+    /// With --scans DIR: the raw depth of one metre [default: 5000, TUM's].
+    #[arg(long, requires = "scans")]
+    depth_scale: Option<f64>,
+    /// With --scans DIR: the camera's trajectory, `timestamp tx ty tz qx qy
+    /// qz qw` lines (TUM format) [default: DIR/groundtruth.txt].
+    #[arg(long, requires = "scans")]
+    trajectory: Option<PathBuf>,
+    /// With --scans DIR: read every N-th image (of those with a pose)
+    /// [default: 1].
+    #[arg(long, requires = "scans")]
+    every: Option<usize>,
+}
+
+impl DepthArgs {
+    /// The options these arguments give.
+    fn options(&self) -> crate::experiment::run::depth_folder::DepthImages {
+        use crate::experiment::run::depth_folder::DepthImages;
+        let default = DepthImages::default();
+        let mut camera = default.camera;
+        if let Some([fx, fy, cx, cy]) = self.intrinsics {
+            (camera.fx, camera.fy, camera.cx, camera.cy) = (fx, fy, cx, cy);
+        }
+        camera.scale = self.depth_scale.unwrap_or(camera.scale);
+        DepthImages {
+            camera,
+            trajectory: self.trajectory.clone(),
+            every: self.every.unwrap_or(default.every),
+        }
+    }
 }
 
 #[derive(Args, Debug)]
@@ -333,9 +374,10 @@ pub(crate) struct ScoreArgs {
     /// truth, placed in the map frame by --scene-pose, at the map's resolution.
     #[arg(long, requires = "scans", conflicts_with_all = ["experiment", "cell"])]
     scene: Option<PathBuf>,
-    /// With --scene: the recorded scans (an OctoMap ScanGraph or a scan log,
-    /// as `map --scans` reads them) the map was built from; the cells their
-    /// rays crossed or ended in are the ones scored.
+    /// With --scene: the recorded scans (an OctoMap ScanGraph, a scan log or
+    /// a folder of depth images, as `map --scans` reads them) the map was
+    /// built from; the cells their rays crossed or ended in are the ones
+    /// scored.
     #[arg(long, requires = "scene")]
     scans: Option<PathBuf>,
     /// With --scene: where the scene stands in the map frame,
@@ -361,6 +403,8 @@ pub(crate) struct ScoreArgs {
     /// ColorOcTree of the cells coloured by error, for octovis).
     #[arg(long, value_name = "FILE")]
     errors: Option<PathBuf>,
+    #[command(flatten)]
+    depth: DepthArgs,
     #[command(flatten)]
     run: RunOptions,
 }

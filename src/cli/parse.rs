@@ -66,6 +66,18 @@ pub(super) fn parse_pose(text: &str) -> std::result::Result<[f64; 6], String> {
     }
 }
 
+/// `--intrinsics fx,fy,cx,cy` (pixels).
+pub(super) fn parse_intrinsics(text: &str) -> std::result::Result<[f64; 4], String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
+        .collect::<std::result::Result<_, _>>()?;
+    match <[f64; 4]>::try_from(values.as_slice()) {
+        Ok(k) if k.iter().all(|v| v.is_finite()) && k[0] != 0.0 && k[1] != 0.0 => Ok(k),
+        _ => Err("expected four finite numbers fx,fy,cx,cy (pixels), nonzero focal lengths".into()),
+    }
+}
+
 /// `--point x,y,z` (m).
 pub(super) fn parse_point(text: &str) -> std::result::Result<[f64; 3], String> {
     let values: Vec<f64> = text

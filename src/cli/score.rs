@@ -8,7 +8,7 @@ use crate::experiment::output::wrong_cells::{write_wrong_cells, ErrorsFormat};
 use crate::experiment::run::placement::{
     Placement, Refinement, SurfaceAgreement, AGREEMENT_WARNING,
 };
-use crate::experiment::run::recorded::read_scan_graph;
+use crate::experiment::run::recorded::read_scans;
 use crate::experiment::run::runner::append_row;
 use crate::experiment::run::scoring::{score_against_scene, score_external, Scored};
 use crate::experiment::study::metrics::{Kind, RunRow, METRICS};
@@ -132,7 +132,8 @@ fn against_scene(
     let scans = args.scans.as_ref().ok_or_else(|| {
         Error::Usage("--scene needs --scans SCANS.graph, the scans the map was built from".into())
     })?;
-    let nodes = read_scan_graph(scans)?;
+    let (nodes, notes) = read_scans(scans, &args.depth.options())?;
+    super::print_notes(&notes, args.run.quiet);
     // OctoMap's clamp, as a map file written by OctoMap or sigmap keeps it.
     let map = read_octree(&args.map, Clamp::OCTOMAP)
         .map_err(|e| e.context("the map (first argument): "))?;

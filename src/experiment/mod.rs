@@ -42,6 +42,16 @@ pub use run::simulate::{simulate, RunTruth, SimulatedRun};
 pub use study::config::{Experiment, Overrides, SweepAxis, SweepValue, Viewpoint};
 pub use study::run_method::RunMethod;
 
+/// The shipped quickstart experiment, loaded.
+#[cfg(test)]
+pub(crate) fn shipped_quickstart() -> Experiment {
+    Experiment::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/quickstart.toml"
+    )))
+    .expect("experiments/quickstart.toml")
+}
+
 /// The quickstart experiment's text with its relative paths made absolute,
 /// so that a test may write an edited copy anywhere.
 #[cfg(test)]

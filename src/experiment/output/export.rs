@@ -133,15 +133,11 @@ pub fn write_export(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::experiment::{read_ply, simulate, Experiment};
+    use crate::experiment::{read_ply, simulate};
 
     #[test]
     fn each_ply_holds_its_viewpoints_measured_hits() {
-        let experiment = Experiment::load(Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/experiments/quickstart.toml"
-        )))
-        .unwrap();
+        let experiment = crate::experiment::shipped_quickstart();
         let run = simulate(&experiment, 1, |_| {}).unwrap();
         let view = experiment.mapper_view();
         let offset = Vector3::new(0.004, -0.002, 0.001);

@@ -4,6 +4,7 @@
 //! maps built elsewhere (`scoring`).
 
 pub mod consensus_truth;
+pub mod depth_folder;
 pub mod external;
 pub mod placement;
 pub mod recorded;

@@ -18,6 +18,7 @@
 //! median angular spacing of nearest neighbours, which is the raster step
 //! of a regular scanner; `--angular-step` overrides it.
 
+use super::depth_folder::{read_depth_folder, DepthImages};
 use crate::error::{Error, Result};
 use crate::geometry::{Matrix3, Matrix6, Point3, Pose, Vector3};
 use crate::mapping::scan::{
@@ -58,6 +59,27 @@ pub const MAX_GRAPH_BYTES: u64 = 8 << 30;
 /// take up to four times its bytes in memory (`0 0 0` is six bytes, a
 /// point 24), so as much as the largest graph's.
 pub const MAX_LOG_BYTES: u64 = 2 << 30;
+
+/// Reads and checks recorded scans: a folder of depth images with their
+/// trajectory ([`read_depth_folder`]), or a file as [`read_scan_graph`]
+/// reads it; with the notes to print (images left without a pose).
+pub fn read_scans(path: &Path, depth: &DepthImages) -> Result<(Vec<ScanNode>, Vec<String>)> {
+    if !path.is_dir() {
+        if *depth != DepthImages::default() {
+            return Err(Error::Usage(format!(
+                "--intrinsics, --depth-scale, --trajectory and --every are for a folder of depth \
+                 images; {} is not a folder",
+                path.display()
+            )));
+        }
+        return Ok((read_scan_graph(path)?, Vec::new()));
+    }
+    let (nodes, notes) = read_depth_folder(path, depth)?;
+    if nodes.iter().all(|n| n.points.is_empty()) {
+        return Err(Error::input(path, "the depth images hold no depth"));
+    }
+    Ok((nodes, notes))
+}
 
 /// Reads and checks recorded scans: an OctoMap ScanGraph, or the plain-text
 /// log `log2graph` reads (`mapping::scan_log`), told apart by their first

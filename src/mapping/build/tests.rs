@@ -1,4 +1,5 @@
 use super::*;
+use crate::experiment::shipped_quickstart as quickstart;
 use crate::experiment::Experiment;
 use crate::geometry::Matrix6;
 use crate::geometry::Pose;
@@ -8,15 +9,6 @@ use crate::mapping::octree::{Key, DEPTH};
 use crate::mapping::scan::*;
 use crate::uncertainty::SigmaSet;
 use crate::uncertainty::UncertainPose;
-use std::path::Path;
-
-fn quickstart() -> Experiment {
-    Experiment::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/experiments/quickstart.toml"
-    )))
-    .unwrap()
-}
 
 #[test]
 fn the_chain_splits_into_shared_and_per_viewpoint_links() {

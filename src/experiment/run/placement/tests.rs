@@ -192,11 +192,7 @@ fn the_fit_finds_the_scene_where_the_drawn_registration_put_it() {
     // the true placement puts its surface; the fitted pose is within 1.9 mm
     // of the true placement at every return (the viewpoints' own errors are
     // the rest; a move the wrong way would double the gap).
-    let experiment = Experiment::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/experiments/quickstart.toml"
-    )))
-    .unwrap();
+    let experiment = crate::experiment::shipped_quickstart();
     let scans = RunScans::of(experiment, 1);
     let offset = scans.experiment.map_offset(1);
     let nominal = Isometry3::translation(offset.x, offset.y, offset.z);

@@ -1,18 +1,11 @@
 use super::*;
 use crate::experiment::output::export::scan_nodes;
-use crate::experiment::{simulate, Experiment};
+use crate::experiment::shipped_quickstart as quickstart;
+use crate::experiment::simulate;
 use crate::mapping::build_map;
 use crate::mapping::measured::measured_ranges;
 use crate::mapping::pooling::Pooling;
 use std::path::Path;
-
-fn quickstart() -> Experiment {
-    Experiment::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/experiments/quickstart.toml"
-    )))
-    .unwrap()
-}
 
 /// Points on a regular (horizontal, vertical) raster in the camera
 /// convention, `d(h, v) = (cos v sin h, sin v, cos v cos h)`.

@@ -1,0 +1,175 @@
+use super::*;
+use crate::experiment::output::export::scan_nodes;
+use crate::experiment::shipped_quickstart as quickstart;
+use crate::experiment::{simulate, Experiment};
+use crate::geometry::{Isometry3, Point3, Vector3};
+use crate::mapping::depth_images::depth_png;
+
+/// A small depth camera: 80 x 60 pixels, about 60° across (unequal focal
+/// lengths, so that rows and columns cannot be swapped unseen).
+const CAMERA: DepthCamera = DepthCamera {
+    fx: 70.0,
+    fy: 65.0,
+    cx: 39.5,
+    cy: 29.5,
+    scale: 5000.0,
+};
+const SIZE: (usize, usize) = (80, 60);
+
+/// The quickstart's scene seen by [`CAMERA`] from its run's (believed)
+/// sensor poses, written as a TUM RGB-D folder in `dir`: one image a
+/// viewpoint at 1 + k/10 s, the trajectory 5 ms later, and one more image at
+/// 100 s that no pose is near. Depths are quantised as the driver would.
+fn write_folder(experiment: &Experiment, dir: &Path) -> Vec<Isometry3> {
+    let run = simulate(experiment, 1, |_| {}).unwrap();
+    let offset = experiment.map_offset(1);
+    let nodes = scan_nodes(&experiment.mapper_view(), &run.scans, &offset);
+    let scene_from_map = Isometry3::translation(-offset.x, -offset.y, -offset.z);
+    std::fs::create_dir_all(dir.join("depth")).unwrap();
+    let (mut list, mut trajectory) = (String::from("# depth maps\n"), String::from("# gt\n"));
+    let poses: Vec<Isometry3> = nodes.iter().map(|n| n.map_from_sensor).collect();
+    for (k, pose) in poses.iter().chain([&poses[0]]).enumerate() {
+        let scene_from_sensor = scene_from_map * pose;
+        let depths: Vec<u16> = (0..SIZE.0 * SIZE.1)
+            .map(|i| {
+                let (u, v) = ((i % SIZE.0) as f64, (i / SIZE.0) as f64);
+                let ray = Vector3::new(
+                    (u - CAMERA.cx) / CAMERA.fx,
+                    (v - CAMERA.cy) / CAMERA.fy,
+                    1.0,
+                );
+                let direction = scene_from_sensor * ray.normalize();
+                let origin = scene_from_sensor * Point3::origin();
+                experiment
+                    .scene()
+                    .cast_ray(&origin, &direction, 4.0)
+                    .map_or(0, |(t, _)| (t / ray.norm() * CAMERA.scale).round() as u16)
+            })
+            .collect();
+        let name = format!("depth/{k:03}.png");
+        std::fs::write(dir.join(&name), depth_png(SIZE.0 as u32, &depths)).unwrap();
+        let time = if k < poses.len() {
+            1.0 + k as f64 / 10.0
+        } else {
+            100.0
+        };
+        list += &format!("{time:.6} {name}\n");
+        if k < poses.len() {
+            let (t, q) = (pose.translation.vector, pose.rotation.coords);
+            trajectory += &format!(
+                "{:.6} {} {} {} {} {} {} {}\n",
+                time + 0.005,
+                t.x,
+                t.y,
+                t.z,
+                q.x,
+                q.y,
+                q.z,
+                q.w
+            );
+        }
+    }
+    std::fs::write(dir.join("depth.txt"), list).unwrap();
+    std::fs::write(dir.join("groundtruth.txt"), trajectory).unwrap();
+    poses
+}
+
+#[test]
+fn depth_pixels_land_on_the_surfaces_they_saw() {
+    // Each image's points, placed by the trajectory, lie on the scene where
+    // its pixel's ray met it: within the depth's quantisation (0.1 mm in
+    // depth, at most 0.15 mm along the ray here).
+    let dir = tempfile::tempdir().unwrap();
+    let experiment = quickstart();
+    let poses = write_folder(&experiment, dir.path());
+    let options = DepthImages {
+        camera: CAMERA,
+        ..DepthImages::default()
+    };
+    let (nodes, notes) = read_depth_folder(dir.path(), &options).unwrap();
+    assert_eq!(nodes.len(), poses.len());
+    assert_eq!(notes.len(), 1);
+    assert!(notes[0].contains("1 of the 7 images"), "{notes:?}");
+    let offset = experiment.map_offset(1);
+    let mut checked = 0;
+    for (node, pose) in nodes.iter().zip(&poses) {
+        let read = node.map_from_sensor;
+        assert!((read.translation.vector - pose.translation.vector).norm() < 1e-12);
+        for p in &node.points {
+            let (origin, end) = (read * Point3::origin() - offset, read * p - offset);
+            let range = (end - origin).norm();
+            let (t, _) = experiment
+                .scene()
+                .cast_ray(&origin, &((end - origin) / range), 4.0)
+                .unwrap();
+            assert!((t - range).abs() < 1.5e-4, "{t} against {range}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 10_000, "{checked}");
+    // Every other image: the first, third and fifth.
+    let every = DepthImages {
+        every: 2,
+        ..options
+    };
+    let (some, _) = read_depth_folder(dir.path(), &every).unwrap();
+    assert_eq!(some.len(), 3);
+    assert_eq!(some[1].map_from_sensor, nodes[2].map_from_sensor);
+    assert_eq!(some[1].points, nodes[2].points);
+}
+
+#[test]
+fn bad_folders_get_one_line_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let read = |options: &DepthImages| read_depth_folder(d, options).unwrap_err().to_string();
+    let options = DepthImages::default();
+    assert!(
+        read(&options).contains("is a folder without depth.txt"),
+        "{}",
+        read(&options)
+    );
+    std::fs::create_dir_all(d.join("depth")).unwrap();
+    std::fs::write(d.join("depth.txt"), "1.0 depth/a.png\n").unwrap();
+    let e = read(&options);
+    assert!(
+        e.contains("groundtruth.txt") && e.contains("cannot read"),
+        "{e}"
+    );
+    std::fs::write(d.join("groundtruth.txt"), "5.0 0 0 0 0 0 0 1\n").unwrap();
+    let e = read(&options);
+    assert!(
+        e.contains("none of the 1 images") && e.contains("within 0.02 s"),
+        "{e}"
+    );
+    std::fs::write(d.join("groundtruth.txt"), "1.0 0 0 0 0 0 0 1\n").unwrap();
+    let e = read(&options);
+    assert!(e.contains("a.png") && e.contains("cannot read"), "{e}");
+    std::fs::write(d.join("depth/a.png"), b"GIF89a, not a png at all").unwrap();
+    let e = read(&options);
+    assert!(e.contains("a.png: is not a PNG image"), "{e}");
+    // A header claiming 100 000 x 100 000 pixels: refused before decoding.
+    let mut huge = depth_png(1, &[1]);
+    huge[16..20].copy_from_slice(&100_000u32.to_be_bytes());
+    huge[20..24].copy_from_slice(&100_000u32.to_be_bytes());
+    std::fs::write(d.join("depth/a.png"), &huge).unwrap();
+    let e = read(&options);
+    assert!(e.contains("100000 x 100000 pixels"), "{e}");
+    std::fs::write(d.join("depth/a.png"), depth_png(2, &[0, 0])).unwrap();
+    let (nodes, notes) = read_depth_folder(d, &options).unwrap();
+    assert!(nodes[0].points.is_empty() && notes.is_empty());
+    let e = read(&DepthImages {
+        every: 0,
+        ..options.clone()
+    });
+    assert!(e.contains("--every 0"), "{e}");
+    let flat = DepthCamera {
+        scale: -1.0,
+        ..DepthCamera::TUM
+    };
+    let e = read(&DepthImages {
+        camera: flat,
+        ..options
+    });
+    assert!(e.contains("--depth-scale -1"), "{e}");
+}
