@@ -54,40 +54,38 @@ pub(super) fn pooling_parser(
     })
 }
 
-/// `--scene-pose x,y,z,roll,pitch,yaw` (m, rad).
-pub(super) fn parse_pose(text: &str) -> std::result::Result<[f64; 6], String> {
+/// `N` comma-separated finite numbers; `expected` says what they are.
+fn finite_numbers<const N: usize>(
+    text: &str,
+    expected: &str,
+) -> std::result::Result<[f64; N], String> {
     let values: Vec<f64> = text
         .split(',')
         .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
         .collect::<std::result::Result<_, _>>()?;
-    match <[f64; 6]>::try_from(values.as_slice()) {
-        Ok(pose) if pose.iter().all(|v| v.is_finite()) => Ok(pose),
-        _ => Err("expected six finite numbers x,y,z,roll,pitch,yaw (m, rad)".into()),
+    match <[f64; N]>::try_from(values.as_slice()) {
+        Ok(numbers) if numbers.iter().all(|v| v.is_finite()) => Ok(numbers),
+        _ => Err(format!("expected {expected}")),
     }
+}
+
+/// `--scene-pose x,y,z,roll,pitch,yaw` (m, rad).
+pub(super) fn parse_pose(text: &str) -> std::result::Result<[f64; 6], String> {
+    finite_numbers(text, "six finite numbers x,y,z,roll,pitch,yaw (m, rad)")
 }
 
 /// `--intrinsics fx,fy,cx,cy` (pixels).
 pub(super) fn parse_intrinsics(text: &str) -> std::result::Result<[f64; 4], String> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
-        .collect::<std::result::Result<_, _>>()?;
-    match <[f64; 4]>::try_from(values.as_slice()) {
-        Ok(k) if k.iter().all(|v| v.is_finite()) && k[0] != 0.0 && k[1] != 0.0 => Ok(k),
-        _ => Err("expected four finite numbers fx,fy,cx,cy (pixels), nonzero focal lengths".into()),
+    let expected = "four finite numbers fx,fy,cx,cy (pixels), nonzero focal lengths";
+    match finite_numbers::<4>(text, expected)? {
+        [0.0, ..] | [_, 0.0, ..] => Err(format!("expected {expected}")),
+        k => Ok(k),
     }
 }
 
 /// `--point x,y,z` (m).
 pub(super) fn parse_point(text: &str) -> std::result::Result<[f64; 3], String> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("'{v}': {e}")))
-        .collect::<std::result::Result<_, _>>()?;
-    match values.as_slice() {
-        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok([*x, *y, *z]),
-        _ => Err("expected three finite numbers x,y,z".into()),
-    }
+    finite_numbers(text, "three finite numbers x,y,z")
 }
 
 /// `--tasks`: between 1 and [`crate::experiment::study::cluster::MAX_TASKS`].
