@@ -2,6 +2,7 @@
 //! `mapping::depth_images`) read as recorded scans (`sigmap map --scans
 //! DIR`, `sigmap score --scans DIR`).
 
+use super::recorded::MAX_RECORDED_POINTS;
 use crate::error::{Error, Result};
 use crate::mapping::depth_images::{
     associate, depth_image_node, parse_depth_list, parse_trajectory, DepthCamera, MAX_TIME_GAP,
@@ -32,10 +33,6 @@ impl Default for DepthImages {
         }
     }
 }
-
-/// The most pixels read over all images: as many points as the largest
-/// ScanGraph sigmap reads holds (a point takes 24 bytes in memory).
-pub const MAX_DEPTH_PIXELS: u64 = super::recorded::MAX_GRAPH_BYTES / 28;
 
 /// The largest list or trajectory file read (bytes).
 const MAX_LIST_BYTES: u64 = 1 << 30;
@@ -115,12 +112,13 @@ pub fn read_depth_folder(
             ));
         }
         pixels += count;
-        if pixels > MAX_DEPTH_PIXELS {
+        if pixels > MAX_RECORDED_POINTS {
             return Err(Error::input(
                 &list_path,
                 format!(
-                    "the {} images selected hold more than {MAX_DEPTH_PIXELS} pixels, more \
-                     points than sigmap holds in memory: read fewer with --every N",
+                    "the {} images selected hold more than {MAX_RECORDED_POINTS} pixels, more \
+                     points than sigmap maps at once (about 80 bytes each while mapping): read \
+                     fewer images with --every N",
                     selected.len()
                 ),
             ));

@@ -60,6 +60,26 @@ pub const MAX_GRAPH_BYTES: u64 = 8 << 30;
 /// point 24), so as much as the largest graph's.
 pub const MAX_LOG_BYTES: u64 = 2 << 30;
 
+/// The most points mapped at once. While scans are mapped each point takes
+/// about 80 bytes (its point, its beam and its direction; measured 75–85
+/// on a folder of depth images), so this is about 8 GB beside a map of at
+/// most [`crate::mapping::build::MAX_MAP_BYTES`].
+pub const MAX_RECORDED_POINTS: u64 = 100_000_000;
+
+/// Refuses `count` points read from `path` past [`MAX_RECORDED_POINTS`].
+fn check_point_count(path: &Path, count: u64) -> Result<()> {
+    if count > MAX_RECORDED_POINTS {
+        return Err(Error::input(
+            path,
+            format!(
+                "{count} points: sigmap maps at most {MAX_RECORDED_POINTS} at once (about 80 \
+                 bytes each while mapping): split the scans"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Reads and checks recorded scans: a folder of depth images with their
 /// trajectory ([`read_depth_folder`]), or a file as [`read_scan_graph`]
 /// reads it; with the notes to print (images left without a pose).
@@ -109,6 +129,8 @@ pub fn read_scan_graph(path: &Path) -> Result<Vec<ScanNode>> {
     if nodes.iter().all(|n| n.points.is_empty()) {
         return Err(Error::input(path, "the scans hold no points"));
     }
+    let count = nodes.iter().map(|n| n.points.len() as u64).sum();
+    check_point_count(path, count)?;
     Ok(nodes)
 }
 

@@ -155,6 +155,37 @@ fn bad_folders_get_one_line_naming_the_file() {
     std::fs::write(d.join("depth/a.png"), &huge).unwrap();
     let e = read(&options);
     assert!(e.contains("100000 x 100000 pixels"), "{e}");
+    // Thirty images whose headers say 2000 x 2000 pixels: 1.2e8 in all,
+    // refused from the headers alone (the files hold no pixels).
+    let mut big = depth_png(1, &[1]);
+    big[16..20].copy_from_slice(&2000u32.to_be_bytes());
+    big[20..24].copy_from_slice(&2000u32.to_be_bytes());
+    let (mut list, mut poses) = (String::new(), String::new());
+    for k in 0..30 {
+        std::fs::write(d.join(format!("depth/{k}.png")), &big).unwrap();
+        list += &format!("{k} depth/{k}.png\n");
+        poses += &format!("{k} 0 0 0 0 0 0 1\n");
+    }
+    let many = d.join("many");
+    std::fs::create_dir_all(&many).unwrap();
+    std::fs::write(many.join("depth.txt"), list).unwrap();
+    std::fs::write(many.join("groundtruth.txt"), poses).unwrap();
+    std::fs::rename(d.join("depth"), many.join("depth")).unwrap();
+    let e = read_depth_folder(&many, &options).unwrap_err().to_string();
+    assert!(
+        e.contains("depth.txt") && e.contains("the 30 images selected") && e.contains("--every N"),
+        "{e}"
+    );
+    let halves = DepthImages {
+        every: 2,
+        ..options.clone()
+    };
+    let e = read_depth_folder(&many, &halves).unwrap_err().to_string();
+    assert!(
+        e.contains("depth/0.png") && e.contains("not a PNG image"),
+        "{e}"
+    );
+    std::fs::create_dir_all(d.join("depth")).unwrap();
     std::fs::write(d.join("depth/a.png"), depth_png(2, &[0, 0])).unwrap();
     let (nodes, notes) = read_depth_folder(d, &options).unwrap();
     assert!(nodes[0].points.is_empty() && notes.is_empty());

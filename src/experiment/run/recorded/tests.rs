@@ -307,3 +307,16 @@ fn a_cloud_reaching_far_past_its_scene_is_refused_before_the_merge() {
     assert!(map(Method::Unscented, Some(3.0)).is_ok());
     assert!(map(Method::RayUpdate, None).is_ok());
 }
+
+#[test]
+fn more_points_than_a_map_can_hold_are_refused_naming_the_file() {
+    let path = Path::new("scans.graph");
+    assert!(check_point_count(path, MAX_RECORDED_POINTS).is_ok());
+    let e = check_point_count(path, MAX_RECORDED_POINTS + 1)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("scans.graph") && e.contains("100000001 points") && e.contains("split"),
+        "{e}"
+    );
+}
