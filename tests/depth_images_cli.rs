@@ -77,24 +77,16 @@ fn depth_images_map_onto_the_floor_they_saw() {
     )
     .unwrap();
     let profile = path(&common::root().join("experiments/profiles/collaborative_poses.toml"));
+    let folder_text = path(&folder);
+    // `sigmap map` of the folder at 2 cm into `out`, with `extra` flags.
+    let map_folder = |method: &str, out: &str, extra: &[&str]| {
+        let head = ["map", "--scans", &folder_text, "--profile", &profile];
+        let tail = ["--method", method, "--resolution", "0.02", "--out", out];
+        sigmap(&[&head[..], extra, &tail].concat())
+    };
     for method in ["ray_update", "unscented"] {
         let map = path(&d.join(format!("{method}.ot")));
-        let args = [
-            "map",
-            "--scans",
-            &path(&folder),
-            "--intrinsics",
-            intrinsics,
-            "--profile",
-            &profile,
-            "--method",
-            method,
-            "--resolution",
-            "0.02",
-            "--out",
-            &map,
-        ];
-        let mapped = sigmap(&args);
+        let mapped = map_folder(method, &map, &["--intrinsics", intrinsics]);
         let told = String::from_utf8_lossy(&mapped.stderr);
         assert!(mapped.status.success(), "{told}");
         assert!(
@@ -139,21 +131,7 @@ fn depth_images_map_onto_the_floor_they_saw() {
     // The intrinsics are the ones given: TUM's own (twice the focal
     // lengths, the centre at the images' corner) put the points elsewhere.
     let tum = path(&d.join("tum.ot"));
-    let out = sigmap(&[
-        "map",
-        "--scans",
-        &path(&folder),
-        "--profile",
-        &profile,
-        "--method",
-        "ray_update",
-        "--resolution",
-        "0.02",
-        "-q",
-        "--out",
-        &tum,
-    ]);
-    assert!(out.status.success());
+    assert!(map_folder("ray_update", &tum, &["-q"]).status.success());
     let given = std::fs::read(d.join("ray_update.ot")).unwrap();
     assert!(std::fs::read(&tum).unwrap() != given);
     // Bad input: one line, exit 2.
