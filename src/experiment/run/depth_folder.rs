@@ -69,6 +69,13 @@ pub fn read_depth_folder(
         .trajectory
         .clone()
         .unwrap_or_else(|| dir.join("groundtruth.txt"));
+    if options.trajectory.is_none() && !trajectory_path.exists() {
+        return Err(Error::input(
+            dir,
+            "has no groundtruth.txt: give the camera's trajectory with --trajectory FILE \
+             (`timestamp tx ty tz qx qy qz qw` lines, e.g. a SLAM system's estimate)",
+        ));
+    }
     let poses = parse_trajectory(&read_text(&trajectory_path)?).map_err(|e| {
         Error::input(
             &trajectory_path,

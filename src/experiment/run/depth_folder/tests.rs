@@ -133,9 +133,15 @@ fn bad_folders_get_one_line_naming_the_file() {
     std::fs::write(d.join("depth.txt"), "1.0 depth/a.png\n").unwrap();
     let e = read(&options);
     assert!(
-        e.contains("groundtruth.txt") && e.contains("cannot read"),
+        e.contains("has no groundtruth.txt: give") && e.contains("--trajectory"),
         "{e}"
     );
+    let absent = DepthImages {
+        trajectory: Some(d.join("absent.txt")),
+        ..options.clone()
+    };
+    let e = read(&absent);
+    assert!(e.contains("absent.txt: cannot read"), "{e}");
     std::fs::write(d.join("groundtruth.txt"), "5.0 0 0 0 0 0 0 1\n").unwrap();
     let e = read(&options);
     assert!(
