@@ -165,6 +165,13 @@ fn depth_images_map_onto_the_floor_they_saw() {
         "elsewhere.txt",
         "none of the 3 images",
     );
+    // Images with no depth anywhere (every pixel 0).
+    let blank = d.join("blank");
+    std::fs::create_dir_all(blank.join("depth")).unwrap();
+    std::fs::write(blank.join("depth/0.png"), flat_png(4, 3, 0)).unwrap();
+    std::fs::write(blank.join("depth.txt"), "1.0 depth/0.png\n").unwrap();
+    std::fs::write(blank.join("groundtruth.txt"), "1.0 0 0 0 0 0 0 1\n").unwrap();
+    run(&[&path(&blank)], "blank", "the depth images hold no depth");
     let log = d.join("scans.txt");
     std::fs::write(&log, "NODE 0 0 1 0 0 0\n0 0 1\n").unwrap();
     run(

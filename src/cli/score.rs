@@ -215,9 +215,8 @@ fn moved_scene(refined: &Refinement, agreement: &SurfaceAgreement, pose: &Pose) 
         ),
     };
     let pose = pose
-        .xyz
+        .params()
         .iter()
-        .chain(&pose.rpy)
         .map(|v| format!("{v:.4}"))
         .collect::<Vec<_>>();
     format!(

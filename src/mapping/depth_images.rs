@@ -19,6 +19,7 @@
 //! the trajectory's frame, the map frame.
 
 use super::scan_graph::ScanNode;
+use super::scan_log::shown;
 use crate::geometry::{Isometry3, Point3};
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 
@@ -116,11 +117,6 @@ fn timestamped_lines(text: &str) -> impl Iterator<Item = Result<(usize, f64, Vec
         };
         Some(parsed)
     })
-}
-
-/// At most 40 characters of `s`, for an error message.
-fn shown(s: &str) -> String {
-    s.chars().take(40).collect()
 }
 
 /// The images of a `depth.txt` (`timestamp filename` lines), in file order.

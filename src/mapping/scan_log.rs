@@ -123,7 +123,7 @@ fn numbers<'a, const N: usize>(
 }
 
 /// `text` trimmed, cut to 60 characters for an error message.
-fn shown(text: &str) -> String {
+pub(super) fn shown(text: &str) -> String {
     let text = text.trim();
     match text.char_indices().nth(60) {
         Some((cut, _)) => format!("{}…", &text[..cut]),

@@ -141,6 +141,9 @@ pub fn read_depth_folder(
             depth_image_node(&bytes, &options.camera, id, poses[pose].1)
                 .map_err(|e| Error::input(&path, e))
         })
+        .collect::<Vec<_>>()
+        // The first image's error in file order, whatever the threads did.
+        .into_iter()
         .collect::<Result<Vec<_>>>()?;
     let mut notes = Vec::new();
     if unposed > 0 {

@@ -82,31 +82,39 @@ fn check_point_count(path: &Path, count: u64) -> Result<()> {
 
 /// Reads and checks recorded scans: a folder of depth images with their
 /// trajectory ([`read_depth_folder`]), or a file as [`read_scan_graph`]
-/// reads it; with the notes to print (images left without a pose).
+/// reads it; with the notes to print (images left without a pose). Scans
+/// without a point, or of more than [`MAX_RECORDED_POINTS`], are refused.
 pub fn read_scans(path: &Path, depth: &DepthImages) -> Result<(Vec<ScanNode>, Vec<String>)> {
-    if !path.is_dir() {
-        if *depth != DepthImages::default() {
-            return Err(Error::Usage(format!(
-                "--intrinsics, --depth-scale, --trajectory and --every are for a folder of depth \
-                 images; {} is not a folder",
-                path.display()
-            )));
-        }
-        return Ok((read_scan_graph(path)?, Vec::new()));
-    }
-    let (nodes, notes) = read_depth_folder(path, depth)?;
+    let (nodes, notes, empty) = if path.is_dir() {
+        let (nodes, notes) = read_depth_folder(path, depth)?;
+        (nodes, notes, "the depth images hold no depth")
+    } else if *depth != DepthImages::default() {
+        return Err(Error::Usage(format!(
+            "--intrinsics, --depth-scale, --trajectory and --every are for a folder of depth \
+             images; {} is not a folder",
+            path.display()
+        )));
+    } else {
+        (
+            read_scan_graph(path)?,
+            Vec::new(),
+            "the scans hold no points",
+        )
+    };
     if nodes.iter().all(|n| n.points.is_empty()) {
-        return Err(Error::input(path, "the depth images hold no depth"));
+        return Err(Error::input(path, empty));
     }
+    let count = nodes.iter().map(|n| n.points.len() as u64).sum();
+    check_point_count(path, count)?;
     Ok((nodes, notes))
 }
 
-/// Reads and checks recorded scans: an OctoMap ScanGraph, or the plain-text
-/// log `log2graph` reads (`mapping::scan_log`), told apart by their first
-/// bytes (a graph's node count holds a zero byte; text holds none). Every
-/// problem (missing, too large, truncated, wrong counts, NaN, a bad line,
-/// no scans) is an error naming the file.
-pub fn read_scan_graph(path: &Path) -> Result<Vec<ScanNode>> {
+/// Reads an OctoMap ScanGraph, or the plain-text log `log2graph` reads
+/// (`mapping::scan_log`), told apart by their first bytes (a graph's node
+/// count holds a zero byte; text holds none). Every problem (missing, too
+/// large, truncated, wrong counts, NaN, a bad line) is an error naming the
+/// file; [`read_scans`] checks what the nodes hold.
+fn read_scan_graph(path: &Path) -> Result<Vec<ScanNode>> {
     let meta = std::fs::metadata(path)
         .map_err(|e| Error::input(path, format!("cannot read the scans: {e}")))?;
     if !meta.is_file() {
@@ -126,11 +134,6 @@ pub fn read_scan_graph(path: &Path) -> Result<Vec<ScanNode>> {
     } else {
         read_log(path, size)?
     };
-    if nodes.iter().all(|n| n.points.is_empty()) {
-        return Err(Error::input(path, "the scans hold no points"));
-    }
-    let count = nodes.iter().map(|n| n.points.len() as u64).sum();
-    check_point_count(path, count)?;
     Ok(nodes)
 }
 
