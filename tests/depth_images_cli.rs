@@ -84,9 +84,20 @@ fn depth_images_map_onto_the_floor_they_saw() {
         let tail = ["--method", method, "--resolution", "0.02", "--out", out];
         sigmap(&[&head[..], extra, &tail].concat())
     };
-    for method in ["ray_update", "unscented"] {
-        let map = path(&d.join(format!("{method}.ot")));
-        let mapped = map_folder(method, &map, &["--intrinsics", intrinsics]);
+    // Both methods, and the unscented map pooled on the images' pixels
+    // (each pixel with its neighbours on the image, docs/math.md §5.6).
+    let pooled: &[&str] = &["--beam-pooling", "windows"];
+    for (method, name, extra) in [
+        ("ray_update", "ray_update", &[][..]),
+        ("unscented", "unscented", &[]),
+        ("unscented", "pooled", pooled),
+    ] {
+        let map = path(&d.join(format!("{name}.ot")));
+        let mapped = map_folder(
+            method,
+            &map,
+            &[&["--intrinsics", intrinsics], extra].concat(),
+        );
         let told = String::from_utf8_lossy(&mapped.stderr);
         assert!(mapped.status.success(), "{told}");
         assert!(
@@ -120,12 +131,12 @@ fn depth_images_map_onto_the_floor_they_saw() {
                 .parse()
                 .unwrap()
         };
-        assert!(metric("f1 ") > 0.99, "{method}: {stdout}");
+        assert!(metric("f1 ") > 0.99, "{name}: {stdout}");
         // The grids bin at the central pixel's angle: at the median
         // spacing of the points, bins between central pixels would stay
         // empty and leave 6.6% of the cells unknown (docs/math.md §5.6).
         if method == "unscented" {
-            assert!(metric("unknown_fraction ") < 0.063, "{stdout}");
+            assert!(metric("unknown_fraction ") < 0.063, "{name}: {stdout}");
         }
     }
     // The intrinsics are the ones given: TUM's own (twice the focal

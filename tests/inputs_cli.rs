@@ -102,6 +102,7 @@ fn map_scans_refuses_bad_graphs_and_profiles() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let node = ScanNode {
+        pixels: None,
         id: 0,
         map_from_sensor: Isometry3::new(Vector3::new(0.0, 0.0, 1.0), Vector3::new(3.1, 0.0, 0.0)),
         points: (0..50)

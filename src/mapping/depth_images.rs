@@ -18,6 +18,7 @@
 //! benchmark's `associate.py` default); the pose maps camera coordinates to
 //! the trajectory's frame, the map frame.
 
+use super::scan::PixelRaster;
 use super::scan_graph::ScanNode;
 use super::scan_log::shown;
 use crate::geometry::{Isometry3, Point3};
@@ -213,6 +214,9 @@ pub fn depth_image_node(
             info.color_type, info.bit_depth as u8
         ));
     }
+    if width as u64 * height as u64 > u64::from(u32::MAX) {
+        return Err(format!("{width} x {height} pixels: the image is too large"));
+    }
     let size = reader
         .output_buffer_size()
         .ok_or("the image is too large")?;
@@ -221,18 +225,27 @@ pub fn depth_image_node(
         .next_frame(&mut raw)
         .map_err(|e| format!("cannot decode the image: {e}"))?;
     let stride = frame.line_size;
-    let points = (0..height)
-        .flat_map(|v| (0..width).map(move |u| (u, v)))
-        .filter_map(|(u, v)| {
+    let (mut points, mut slots) = (Vec::new(), Vec::new());
+    for v in 0..height {
+        for u in 0..width {
             // PNG stores 16-bit samples big-endian.
             let at = v * stride + 2 * u;
-            camera.point(u, v, u16::from_be_bytes([raw[at], raw[at + 1]]))
-        })
-        .collect();
+            if let Some(p) = camera.point(u, v, u16::from_be_bytes([raw[at], raw[at + 1]])) {
+                points.push(p);
+                // Below 2³² (checked above).
+                slots.push((v * width + u) as u32);
+            }
+        }
+    }
     Ok(ScanNode {
         id,
         map_from_sensor,
         points,
+        pixels: Some(PixelRaster {
+            columns: width,
+            rows: height,
+            slots,
+        }),
     })
 }
 

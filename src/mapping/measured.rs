@@ -4,7 +4,7 @@
 //! rays OctoMap's update inserts.
 
 use super::pooling::{pool_ranges, Pooled, PooledRange, Pooling};
-use super::scan::{BeamLayout, BeamStatus, MapperView, Measurement, Scan};
+use super::scan::{BeamLayout, BeamStatus, GridMember, MapperView, Measurement, Scan};
 use crate::geometry::{Point3, Vector3};
 use crate::uncertainty::{RangeModel, UncertainPoint};
 
@@ -56,33 +56,64 @@ fn pooled_ranges(
     if pooling == Pooling::Off {
         return Ok(raw);
     }
-    // Each grid's beams laid into its raster of slots, pooled there.
-    let mut out = raw;
-    for grid in &layout.grids {
-        let (columns, rows) = (grid.azimuth.count, grid.elevation.count);
-        let mut slot_ranges = vec![None; columns * rows];
-        let mut slot_directions = vec![Vector3::zeros(); columns * rows];
-        let members = grid.slots(layout);
-        for member in &members {
-            // A slot's direction is set once it holds a beam.
-            if slot_directions[member.slot] != Vector3::zeros() {
-                return Err(format!(
+    // An image's points pool with their neighbours on its pixels, other
+    // clouds' on each grid's raster of bins.
+    let rasters: Vec<((usize, usize), Vec<GridMember>)> = match &layout.pixels {
+        Some(pixels) => vec![((pixels.columns, pixels.rows), pixels.members())],
+        None => layout
+            .grids
+            .iter()
+            .map(|grid| {
+                (
+                    (grid.azimuth.count, grid.elevation.count),
+                    grid.slots(layout),
+                )
+            })
+            .collect(),
+    };
+    let (mut out, rays) = (raw, (&layout.directions[..], &ranges[..]));
+    for (k, (raster, members)) in rasters.into_iter().enumerate() {
+        pool_on_raster(raster, &members, rays, &mut out, pool).map_err(|()| {
+            match layout.pixels {
+                Some(_) => format!("scan {} has two points on one pixel", scan.viewpoint),
+                None => format!(
                     "beam pooling needs a regular raster, one point per angular bin: scan {} has \
-                     two points in one bin of {:.4} deg; give the scanner's angular step, or map \
-                     without beam pooling",
+                 two points in one bin of {:.4} deg; give the scanner's angular step, or map \
+                 without beam pooling",
                     scan.viewpoint,
-                    grid.azimuth.step.to_degrees()
-                ));
+                    layout.grids[k].azimuth.step.to_degrees()
+                ),
             }
-            slot_directions[member.slot] = layout.directions[member.beam];
-            slot_ranges[member.slot] = ranges[member.beam];
-        }
-        let pooled = pool(columns, &slot_directions, &slot_ranges);
-        for member in &members {
-            out[member.beam] = pooled[member.slot];
-        }
+        })?;
     }
     Ok(out)
+}
+
+/// Pools the beams `members` laid into the slots of a raster of `(columns,
+/// rows)` with `pool(columns, slot directions, slot ranges)`, writing each
+/// member's result into `out`; fails if two share a slot.
+fn pool_on_raster(
+    (columns, rows): (usize, usize),
+    members: &[GridMember],
+    (directions, ranges): (&[Vector3], &[Option<f64>]),
+    out: &mut [Pooled],
+    pool: impl Fn(usize, &[Vector3], &[Option<f64>]) -> Vec<Pooled>,
+) -> Result<(), ()> {
+    let mut slot_ranges = vec![None; columns * rows];
+    let mut slot_directions = vec![Vector3::zeros(); columns * rows];
+    for member in members {
+        // A slot's direction is set once it holds a beam.
+        if slot_directions[member.slot] != Vector3::zeros() {
+            return Err(());
+        }
+        slot_directions[member.slot] = directions[member.beam];
+        slot_ranges[member.slot] = ranges[member.beam];
+    }
+    let pooled = pool(columns, &slot_directions, &slot_ranges);
+    for member in members {
+        out[member.beam] = pooled[member.slot];
+    }
+    Ok(())
 }
 
 /// Where the surface crosses the nominal line of the beam along the unit

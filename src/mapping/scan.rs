@@ -101,6 +101,23 @@ pub struct BeamLayout {
     /// (rad), which bound the space one viewpoint clears
     /// ([`cleared_boundary_cells`]); `None` for a recorded cloud.
     pub half_angles: Option<[f64; 2]>,
+    /// The pixel raster a recorded cloud was measured on (a depth
+    /// image's), where its beams' neighbours are for pooling (§5.5);
+    /// `None`: the grids' rasters.
+    pub pixels: Option<PixelRaster>,
+}
+
+/// Where a cloud's points lie on the pixel raster that measured them (a
+/// depth image's): point k in slot `slots[k]` = row × columns + column,
+/// no two in one slot.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PixelRaster {
+    /// Pixels a row.
+    pub columns: usize,
+    /// Rows.
+    pub rows: usize,
+    /// Each point's slot, in the points' order.
+    pub slots: Vec<u32>,
 }
 
 /// One angular grid of a [`BeamLayout`]: its frame, its bins, and which
@@ -144,7 +161,19 @@ impl BeamLayout {
                 members: None,
             }],
             half_angles: Some([half_angle(raster.horizontal), half_angle(raster.vertical)]),
+            pixels: None,
         }
+    }
+}
+
+impl PixelRaster {
+    /// Each point with its slot.
+    pub fn members(&self) -> Vec<GridMember> {
+        let slot = |(beam, &slot): (usize, &u32)| GridMember {
+            beam,
+            slot: slot as usize,
+        };
+        self.slots.iter().enumerate().map(slot).collect()
     }
 }
 

@@ -14,6 +14,7 @@
 //!
 //! sigmap writes no edges and reads past them.
 
+use super::scan::PixelRaster;
 use crate::geometry::{Isometry3, Point3, Vector3};
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 
@@ -27,6 +28,9 @@ pub struct ScanNode {
     pub map_from_sensor: Isometry3,
     /// End points in the sensor frame (OctoMap keeps them as `f32`).
     pub points: Vec<Point3>,
+    /// The pixel of each point, where the points came from an image (a
+    /// graph or a log does not carry them).
+    pub pixels: Option<PixelRaster>,
 }
 
 /// Bytes of one point (`i32` tag and three `f64`).
@@ -154,6 +158,7 @@ pub fn parse_scan_graph(bytes: &[u8]) -> Result<Vec<ScanNode>, String> {
         }
         let id = r.u32("a node id")?;
         nodes.push(ScanNode {
+            pixels: None,
             id,
             map_from_sensor: Isometry3::from_parts(
                 Translation3::from(Vector3::new(x, y, z)),
@@ -173,6 +178,7 @@ mod tests {
     fn nodes() -> Vec<ScanNode> {
         (0..3)
             .map(|k| ScanNode {
+                pixels: None,
                 id: k,
                 map_from_sensor: Isometry3::new(
                     Vector3::new(0.1 * k as f64, -0.2, 0.5),

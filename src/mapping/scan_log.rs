@@ -58,6 +58,7 @@ pub fn parse_scan_log(mut reader: impl BufRead) -> Result<Vec<ScanNode>, String>
             })?;
             let id = u32::try_from(nodes.len()).map_err(|_| at("too many nodes".into()))?;
             nodes.push(ScanNode {
+                pixels: None,
                 id,
                 map_from_sensor: Pose::new([x, y, z], [roll, pitch, yaw]).to_isometry(),
                 points: Vec::new(),

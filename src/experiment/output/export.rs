@@ -29,6 +29,7 @@ pub fn scan_nodes(view: &MapperView, scans: &[Scan], offset: &Vector3) -> Vec<Sc
         .iter()
         .enumerate()
         .map(|(i, scan)| ScanNode {
+            pixels: None,
             id: scan.viewpoint as u32,
             map_from_sensor: map_from_scene * scan.chain.scene_from_camera(),
             points: scan

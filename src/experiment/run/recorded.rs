@@ -242,7 +242,7 @@ fn point_measurement(p: &Point3, max_range: f64) -> Measurement {
 }
 
 /// The beam layout of a node's cloud: each point's direction, binned on the
-/// grids of [`node_grids`].
+/// grids of [`node_grids`], and its pixels if it came from an image.
 fn node_layout(node: &ScanNode, step: Option<f64>) -> Result<BeamLayout> {
     let directions = node
         .points
@@ -264,6 +264,7 @@ fn node_layout(node: &ScanNode, step: Option<f64>) -> Result<BeamLayout> {
         directions,
         grids,
         half_angles: None,
+        pixels: node.pixels.clone(),
     })
 }
 

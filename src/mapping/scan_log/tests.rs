@@ -94,6 +94,7 @@ fn a_bad_line_is_named_with_what_is_wrong() {
 fn a_written_log_reads_back_to_its_nodes() {
     let nodes: Vec<ScanNode> = (0..3)
         .map(|i| ScanNode {
+            pixels: None,
             id: i,
             map_from_sensor: Pose::new([0.1 * f64::from(i), -2.0, 1.0 / 3.0], [0.3, -1.2, 2.9])
                 .to_isometry(),

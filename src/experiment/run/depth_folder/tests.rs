@@ -1,9 +1,16 @@
 use super::*;
 use crate::experiment::output::export::scan_nodes;
+use crate::experiment::run::recorded::recorded_scans;
 use crate::experiment::shipped_quickstart as quickstart;
 use crate::experiment::{simulate, Experiment};
 use crate::geometry::{Isometry3, Point3, Vector3};
 use crate::mapping::depth_images::depth_png;
+use crate::mapping::measured::measured_ranges;
+use crate::mapping::pooling::Pooling;
+use crate::mapping::{Layouts, MapSettings, MapperView};
+use crate::uncertainty::{RangeModel, SigmaSet};
+use rand::{Rng, SeedableRng};
+use rand_distr::StandardNormal;
 
 /// A small depth camera: 80 x 60 pixels, about 60° across (unequal focal
 /// lengths, so that rows and columns cannot be swapped unseen).
@@ -19,8 +26,10 @@ const SIZE: (usize, usize) = (80, 60);
 /// The quickstart's scene seen by [`CAMERA`] from its run's (believed)
 /// sensor poses, written as a TUM RGB-D folder in `dir`: one image a
 /// viewpoint at 1 + k/10 s, the trajectory 5 ms later, and one more image at
-/// 100 s that no pose is near. Depths are quantised as the driver would.
-fn write_folder(experiment: &Experiment, dir: &Path) -> Vec<Isometry3> {
+/// 100 s that no pose is near. Depths are quantised as the driver would,
+/// after `noise`'s range error (seeded) is added along each pixel's ray.
+fn write_folder(experiment: &Experiment, dir: &Path, noise: Option<&RangeModel>) -> Vec<Isometry3> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let run = simulate(experiment, 1, |_| {}).unwrap();
     let offset = experiment.map_offset(1);
     let nodes = scan_nodes(&experiment.mapper_view(), &run.scans, &offset);
@@ -40,10 +49,15 @@ fn write_folder(experiment: &Experiment, dir: &Path) -> Vec<Isometry3> {
                 );
                 let direction = scene_from_sensor * ray.normalize();
                 let origin = scene_from_sensor * Point3::origin();
+                let mut error = |t: f64| {
+                    noise.map_or(0.0, |n| n.sigma(t) * rng.sample::<f64, _>(StandardNormal))
+                };
                 experiment
                     .scene()
                     .cast_ray(&origin, &direction, 4.0)
-                    .map_or(0, |(t, _)| (t / ray.norm() * CAMERA.scale).round() as u16)
+                    .map_or(0, |(t, _)| {
+                        ((t + error(t)) / ray.norm() * CAMERA.scale).round() as u16
+                    })
             })
             .collect();
         let name = format!("depth/{k:03}.png");
@@ -81,7 +95,7 @@ fn depth_pixels_land_on_the_surfaces_they_saw() {
     // depth, at most 0.15 mm along the ray here).
     let dir = tempfile::tempdir().unwrap();
     let experiment = quickstart();
-    let poses = write_folder(&experiment, dir.path());
+    let poses = write_folder(&experiment, dir.path(), None);
     let options = DepthImages {
         camera: CAMERA,
         ..DepthImages::default()
@@ -116,6 +130,64 @@ fn depth_pixels_land_on_the_surfaces_they_saw() {
     assert_eq!(some.len(), 3);
     assert_eq!(some[1].map_from_sensor, nodes[2].map_from_sensor);
     assert_eq!(some[1].points, nodes[2].points);
+}
+
+/// Pooling (§5.5) works on an image's pixels, each pooled with its
+/// neighbours on the image: with the profile's range noise drawn into the
+/// depths, most pixels of the quickstart's surfaces are pooled and their
+/// pooled ranges lie nearer the surface than their raw ones (a 3 x 3
+/// window averages nine ranges: a third of the error on a plane).
+#[test]
+fn depth_pixels_pool_with_their_neighbours_on_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let experiment = quickstart();
+    let profile = crate::sim::profile::ErrorProfile::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/profiles/collaborative_poses.toml"
+    )))
+    .unwrap();
+    write_folder(&experiment, dir.path(), Some(&profile.range));
+    let options = DepthImages {
+        camera: CAMERA,
+        ..DepthImages::default()
+    };
+    let (nodes, _) = read_depth_folder(dir.path(), &options).unwrap();
+    let (scans, layouts) =
+        recorded_scans(&nodes, &profile, f64::INFINITY, Some(CAMERA.angular_step())).unwrap();
+    let settings = MapSettings {
+        beam_pooling: Pooling::Windows,
+        ..MapSettings::default()
+    };
+    let view = MapperView {
+        layouts: Layouts::PerScan(&layouts),
+        range: &profile.range,
+        max_range: f64::INFINITY,
+        settings: &settings,
+        sigma_set: SigmaSet::Paper,
+    };
+    let offset = experiment.map_offset(1);
+    let (mut raw, mut pooled, mut count, mut hits) = (0.0, 0.0, 0, 0);
+    for ((node, scan), layout) in nodes.iter().zip(&scans).zip(&layouts) {
+        let ranges = measured_ranges(&view, layout, scan).unwrap();
+        let origin = node.map_from_sensor * Point3::origin() - offset;
+        for (p, range) in node.points.iter().zip(&ranges) {
+            hits += 1;
+            let Some(range) = range.filter(|r| r.normal.is_some()) else {
+                continue;
+            };
+            let direction = node.map_from_sensor * (p.coords / p.coords.norm());
+            let (t, _) = experiment
+                .scene()
+                .cast_ray(&origin, &direction, 4.0)
+                .unwrap();
+            raw += (p.coords.norm() - t).powi(2);
+            pooled += (range.range - t).powi(2);
+            count += 1;
+        }
+    }
+    assert!(count * 10 > hits * 6, "{count} of {hits} pooled");
+    let (raw, pooled) = ((raw / count as f64).sqrt(), (pooled / count as f64).sqrt());
+    assert!(pooled < 0.5 * raw, "pooled rms {pooled} against raw {raw}");
 }
 
 #[test]

@@ -153,6 +153,7 @@ fn a_lone_plane_fixes_only_its_height_and_tilts() {
     // One node 1 m up looking down (sensor z along the map's −z).
     let down = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
     let node = ScanNode {
+        pixels: None,
         id: 0,
         map_from_sensor: Isometry3::from_parts(nalgebra::Translation3::new(0.0, 0.0, 1.0), down),
         points: (0..400)

@@ -171,6 +171,7 @@ fn a_profile_with_joint_errors_is_refused() {
     let experiment = quickstart();
     assert!(matches!(experiment.profile().arm, ArmError::Joints(_)));
     let node = ScanNode {
+        pixels: None,
         id: 0,
         map_from_sensor: crate::geometry::Isometry3::identity(),
         points: vec![Point3::new(0.0, 0.0, 1.0)],
@@ -190,6 +191,7 @@ fn a_profile_with_joint_errors_is_refused() {
 fn pooling_a_cloud_needs_one_point_per_bin() {
     let points = raster(0.5, 30, 20, |_| true);
     let node = ScanNode {
+        pixels: None,
         id: 7,
         map_from_sensor: crate::geometry::Isometry3::identity(),
         points,
@@ -248,6 +250,7 @@ fn recorded_scans_refuse_an_absurd_profile() {
     .unwrap();
     profile.arm = ArmError::Pose(Matrix6::identity() * 1e200 * 1e200);
     let node = ScanNode {
+        pixels: None,
         id: 0,
         map_from_sensor: crate::geometry::Isometry3::identity(),
         points: vec![Point3::new(0.0, 0.0, 1.0)],
@@ -283,6 +286,7 @@ fn a_cloud_reaching_far_past_its_scene_is_refused_before_the_merge() {
     let mut points = raster(0.5, 24, 16, |_| true);
     points[40] = Point3::from(points[40].coords.normalize() * 1e100);
     let nodes = [ScanNode {
+        pixels: None,
         id: 7,
         map_from_sensor: crate::geometry::Isometry3::identity(),
         points,

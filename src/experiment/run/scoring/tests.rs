@@ -97,6 +97,7 @@ fn an_exact_run_scored_against_its_scene_and_scans_gives_the_run_row() {
 #[test]
 fn recorded_points_beyond_the_maximum_range_are_rays_that_saw_nothing() {
     let node = ScanNode {
+        pixels: None,
         id: 0,
         map_from_sensor: Isometry3::translation(1.0, 0.0, 0.0),
         points: vec![Point3::new(0.0, 0.0, 0.5), Point3::new(0.0, 0.0, 4.0)],
