@@ -139,6 +139,27 @@ fn depth_images_map_onto_the_floor_they_saw() {
             assert!(metric("unknown_fraction ") < 0.063, "{name}: {stdout}");
         }
     }
+    // The floor scored raised 1.5 cm: the note moves it back down and names
+    // what a floor leaves free.
+    let raised = sigmap(&[
+        "score",
+        &path(&d.join("ray_update.ot")),
+        "--scene",
+        &path(&scene),
+        "--scans",
+        &folder_text,
+        "--intrinsics",
+        intrinsics,
+        "--scene-pose",
+        "0,0,0.015,0,0,0",
+    ]);
+    let told = String::from_utf8_lossy(&raised.stderr);
+    assert!(
+        told.contains("fix 3 of the 6 degrees of freedom and leave x, y and the turn about z free")
+            && told.contains("(0.0000, 0.0000, -0.0150) m at")
+            && told.contains("--scene-pose 0.0000,0.0000,0.0000,0.0000,0.0000,0.0000"),
+        "{told}"
+    );
     // The intrinsics are the ones given: TUM's own (twice the focal
     // lengths, the centre at the images' corner) put the points elsewhere.
     let tum = path(&d.join("tum.ot"));

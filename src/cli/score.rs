@@ -205,22 +205,21 @@ fn misplaced_scene(agreement: &SurfaceAgreement, scene: &std::path::Path) -> Str
 /// The note for scans that fit the scene better moved: the move, how many
 /// degrees of freedom the returns fix, and the `--scene-pose` that makes it.
 fn moved_scene(refined: &Refinement, agreement: &SurfaceAgreement, pose: &Pose) -> String {
-    let s = refined.centroid_shift;
+    // Four decimals, a value that rounds to zero printed as 0.0000.
+    let fixed = |v: f64| format!("{:.4}", if v.abs() < 5e-5 { 0.0 } else { v });
+    let s = refined.centroid_shift.map(fixed);
     let turn = refined.correction.rotation.angle().to_degrees();
     let free = match refined.fixed {
         6 => String::new(),
         fixed => format!(
-            "; the returns fix {fixed} of the 6 degrees of freedom, and the scene is not \
-             moved along the others"
+            "; the returns fix {fixed} of the 6 degrees of freedom and leave {} free, and the \
+             scene is not moved along those",
+            free_moves(&refined.freedom)
         ),
     };
-    let pose = pose
-        .params()
-        .iter()
-        .map(|v| format!("{v:.4}"))
-        .collect::<Vec<_>>();
+    let pose = pose.params().iter().map(|&v| fixed(v)).collect::<Vec<_>>();
     format!(
-        "note: the scans' returns fit the scene better moved by ({:.4}, {:.4}, {:.4}) m at \
+        "note: the scans' returns fit the scene better moved by ({}, {}, {}) m at \
          their centroid and turned by {turn:.2} degrees about it, in the map frame (no return \
          moves more than {:.4} m; {:.1}% of the returns meet it within {} m of their range, \
          against {:.1}% where it stands{free}): to score against it there, give \
@@ -236,6 +235,41 @@ fn moved_scene(refined: &Refinement, agreement: &SurfaceAgreement, pose: &Pose) 
     )
 }
 
+/// The moves the returns leave free, named from [`Refinement::freedom`]:
+/// the axes wholly free ("x, y and the turn about z"), else the axes the
+/// free moves mix.
+fn free_moves(freedom: &[f64; 6]) -> String {
+    const MOVES: [&str; 6] = [
+        "x",
+        "y",
+        "z",
+        "the turn about x",
+        "the turn about y",
+        "the turn about z",
+    ];
+    let named = |least: f64| -> Vec<&str> {
+        MOVES
+            .iter()
+            .zip(freedom)
+            .filter(|(_, &share)| share > least)
+            .map(|(name, _)| *name)
+            .collect()
+    };
+    let list = |names: Vec<&str>| match names.split_last() {
+        Some((last, [])) => last.to_string(),
+        Some((last, rest)) => format!("{} and {last}", rest.join(", ")),
+        None => String::new(),
+    };
+    if freedom.iter().all(|&share| !(0.1..=0.9).contains(&share)) {
+        list(named(0.9))
+    } else {
+        match freedom.iter().sum::<f64>().round() {
+            count if count < 1.5 => format!("a mix of {}", list(named(0.1))),
+            count => format!("{count} mixes of {}", list(named(0.1))),
+        }
+    }
+}
+
 fn print_row(title: &str, row: &RunRow) {
     println!("{title}");
     for (metric, value) in METRICS.iter().zip(&row.values) {
@@ -246,5 +280,24 @@ fn print_row(title: &str, row: &RunRow) {
             Kind::Count => println!("  {:<24} {value:>12}", metric.name),
             Kind::Real => println!("  {:<24} {value:>12.6}", metric.name),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::free_moves;
+
+    #[test]
+    fn free_moves_are_named_by_axis_or_as_mixes() {
+        assert_eq!(
+            free_moves(&[1.0, 1.0, 0.0, 0.0, 0.0, 1.0]),
+            "x, y and the turn about z"
+        );
+        assert_eq!(free_moves(&[0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), "z");
+        // One free move along x + y, one along the turn about y and z.
+        let half = [0.5, 0.5, 0.0, 0.0, 0.0, 0.0];
+        assert_eq!(free_moves(&half), "a mix of x and y");
+        let two = [0.5, 0.5, 0.02, 0.0, 0.98, 0.0];
+        assert_eq!(free_moves(&two), "2 mixes of x, y and the turn about y");
     }
 }

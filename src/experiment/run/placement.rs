@@ -145,6 +145,11 @@ pub struct Refinement {
     /// How many of the six degrees of freedom (three translations, three
     /// turns about the returns' centroid) the returns fix.
     pub fixed: usize,
+    /// How free each degree of freedom is, in the order x, y, z and the
+    /// turns about x, y, z through the centroid (map axes): the squared
+    /// length of its unit move projected on the moves the returns leave
+    /// free (1: wholly free, 0: fixed; they add up to `6 − fixed`).
+    pub freedom: [f64; 6],
     /// The agreement with the scene moved.
     pub agreement: SurfaceAgreement,
 }
@@ -212,7 +217,7 @@ impl Placement<'_> {
         let reach = REFINE_REACH * tolerance;
         let step = 0.1 * tolerance;
         let mut correction = Isometry3::identity();
-        let mut fixed = 0;
+        let (mut fixed, mut freedom) = (0, [0.0; 6]);
         for _ in 0..REFINE_STEPS {
             // The scene where it stands now, and moved a step along each
             // degree of freedom: cast from these frames.
@@ -246,13 +251,17 @@ impl Placement<'_> {
             let eigen = nalgebra::SymmetricEigen::new(normal);
             let largest = eigen.eigenvalues.max();
             let mut delta = Vector6::zeros();
-            fixed = 0;
+            (fixed, freedom) = (0, [0.0; 6]);
             for k in 0..6 {
+                let v = eigen.eigenvectors.column(k).into_owned();
                 // A direction a thousandth as constrained as the best is free.
                 if eigen.eigenvalues[k] > 1e-3 * largest {
-                    let v = eigen.eigenvectors.column(k).into_owned();
                     delta -= v * (v.dot(&gradient) / eigen.eigenvalues[k]);
                     fixed += 1;
+                } else {
+                    for (share, c) in freedom.iter_mut().zip(v.iter()) {
+                        *share += c * c;
+                    }
                 }
             }
             correction = moves.of(&delta) * correction;
@@ -269,6 +278,7 @@ impl Placement<'_> {
             centroid_shift: correction * Point3::from(pivot) - Point3::from(pivot),
             largest_move,
             fixed,
+            freedom,
             agreement: self.agreement(&(correction * map_from_scene)),
         })
     }

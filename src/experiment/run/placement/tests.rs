@@ -175,6 +175,14 @@ fn a_lone_plane_fixes_only_its_height_and_tilts() {
     // Its height and its two tilts; not where it lies along itself, nor
     // its turn about the vertical.
     assert_eq!(refined.fixed, 3, "{refined:?}");
+    // Free: x, y and the turn about z, each wholly.
+    for (k, share) in refined.freedom.iter().enumerate() {
+        let free = [0, 1, 5].contains(&k);
+        assert!(
+            (share - f64::from(u8::from(free))).abs() < 1e-6,
+            "{refined:?}"
+        );
+    }
     let expected = Vector3::new(0.0, 0.0, -0.01);
     assert!(
         (refined.correction.translation.vector - expected).norm() < 1e-6,
