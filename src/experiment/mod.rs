@@ -52,6 +52,17 @@ pub(crate) fn shipped_quickstart() -> Experiment {
     .expect("experiments/quickstart.toml")
 }
 
+/// The shipped profile for recorded scans
+/// (`experiments/profiles/collaborative_poses.toml`), loaded.
+#[cfg(test)]
+pub(crate) fn shipped_poses_profile() -> crate::sim::profile::ErrorProfile {
+    crate::sim::profile::ErrorProfile::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/profiles/collaborative_poses.toml"
+    )))
+    .expect("experiments/profiles/collaborative_poses.toml")
+}
+
 /// The quickstart experiment's text with its relative paths made absolute,
 /// so that a test may write an edited copy anywhere.
 #[cfg(test)]

@@ -141,11 +141,7 @@ fn depth_pixels_land_on_the_surfaces_they_saw() {
 fn depth_pixels_pool_with_their_neighbours_on_the_image() {
     let dir = tempfile::tempdir().unwrap();
     let experiment = quickstart();
-    let profile = crate::sim::profile::ErrorProfile::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/experiments/profiles/collaborative_poses.toml"
-    )))
-    .unwrap();
+    let profile = crate::experiment::shipped_poses_profile();
     write_folder(&experiment, dir.path(), Some(&profile.range));
     let options = DepthImages {
         camera: CAMERA,

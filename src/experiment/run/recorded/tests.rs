@@ -243,11 +243,7 @@ fn pooling_a_cloud_needs_one_point_per_bin() {
 /// for recorded scans as it is for an experiment, naming the profile.
 #[test]
 fn recorded_scans_refuse_an_absurd_profile() {
-    let mut profile = ErrorProfile::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/experiments/profiles/collaborative_poses.toml"
-    )))
-    .unwrap();
+    let mut profile = crate::experiment::shipped_poses_profile();
     profile.arm = ArmError::Pose(Matrix6::identity() * 1e200 * 1e200);
     let node = ScanNode {
         pixels: None,
@@ -278,11 +274,7 @@ fn recorded_scans_refuse_an_absurd_profile() {
 /// made; the ray update maps it as it is.
 #[test]
 fn a_cloud_reaching_far_past_its_scene_is_refused_before_the_merge() {
-    let profile = ErrorProfile::load(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/experiments/profiles/collaborative_poses.toml"
-    )))
-    .unwrap();
+    let profile = crate::experiment::shipped_poses_profile();
     let mut points = raster(0.5, 24, 16, |_| true);
     points[40] = Point3::from(points[40].coords.normalize() * 1e100);
     let nodes = [ScanNode {
