@@ -7,13 +7,18 @@
 //! (T_sw) places it, blurred over DRAWS further draws of the registration
 //! error (what a map that knows the registration's covariance, and nothing
 //! else wrong, would believe), called occupied where that belief exceeds τ,
-//! scored against the truth on the run's observable cells. Prints the mean
-//! precision, false-free rate and F1 per τ.
+//! scored against the truth on the run's observable cells. Prints, per τ,
+//! the mean precision, false-free rate and F1, and each one's paired
+//! difference from the registered truth (the reference method
+//! `registered_truth`, the same seeds) with its 95% Student t interval.
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use sigmap::eval::ground_truth::voxelise_in;
-use sigmap::experiment::run::runner::{ground_truth, observable, registered_placement};
+use sigmap::eval::ground_truth::{voxelise_within, KeyBox};
+use sigmap::eval::scores::{score_map, UNKNOWN_BAND};
+use sigmap::experiment::run::runner::{observable, registered_placement, run_truth};
+use sigmap::experiment::study::metrics::Better;
+use sigmap::experiment::study::summary::PairedDifference;
 use sigmap::experiment::{simulate, Experiment, SweepValue};
 use sigmap::mapping::octree::DEPTH;
 use sigmap::mapping::Key;
@@ -21,7 +26,16 @@ use sigmap::sim::truth::draw_pose;
 use sigmap::uncertainty::UncertainPose;
 use std::path::Path;
 
-const THRESHOLDS: [f64; 10] = [0.02, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9];
+const THRESHOLDS: [f64; 14] = [
+    0.02, 0.1, 0.2, 0.3, 0.35, 0.4, 0.45, 0.475, 0.5, 0.55, 0.6, 0.7, 0.8, 0.9,
+];
+
+/// Precision, false-free rate and F1, with the direction each improves in.
+const SCORES: [(&str, Better); 3] = [
+    ("precision", Better::Higher),
+    ("false_free_rate", Better::Lower),
+    ("f1", Better::Higher),
+];
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -41,78 +55,143 @@ fn main() {
     let cell = [("pose_error_scale".to_string(), SweepValue::Number(scale))];
     let result = Experiment::load_cell(Path::new(&args[1]), &cell)
         .and_then(|experiment| ceiling(&experiment, seeds, draws));
-    match result {
-        Ok(sums) => {
-            println!("tau,precision,false_free_rate,f1");
-            for (tau, [precision, false_free, f1]) in THRESHOLDS.iter().zip(sums) {
-                let n = seeds as f64;
-                println!(
-                    "{tau},{:.4},{:.4},{:.4}",
-                    precision / n,
-                    false_free / n,
-                    f1 / n
-                );
-            }
-        }
+    let per_seed = match result {
+        Ok(per_seed) => per_seed,
         Err(e) => {
             eprintln!("registration_ceiling: {e}");
             std::process::exit(2);
         }
+    };
+    print!("tau");
+    for (name, _) in SCORES {
+        print!(",{name},{name}_minus_registered,ci95_low,ci95_high");
+    }
+    println!();
+    let registered = &per_seed.registered;
+    let rows = std::iter::once(("registered_truth".to_string(), registered)).chain(
+        THRESHOLDS
+            .iter()
+            .zip(&per_seed.blurred)
+            .map(|(t, s)| (t.to_string(), s)),
+    );
+    for (label, scores) in rows {
+        print!("{label}");
+        for (index, (_, better)) in SCORES.iter().enumerate() {
+            let column = |s: &[(u64, [f64; 3])]| -> Vec<(u64, f64)> {
+                s.iter().map(|(seed, v)| (*seed, v[index])).collect()
+            };
+            let mine = column(scores);
+            let mean = mine.iter().map(|(_, v)| v).sum::<f64>() / mine.len() as f64;
+            match PairedDifference::of(&mine, &column(registered), *better) {
+                Some(d) => print!(
+                    ",{mean:.4},{:+.4},{:+.4},{:+.4}",
+                    d.mean, d.ci95.0, d.ci95.1
+                ),
+                None => print!(",{mean:.4},,,"),
+            }
+        }
+        println!();
     }
 }
 
-/// Per threshold, the sums over seeds of precision, false-free rate and F1.
-fn ceiling(experiment: &Experiment, seeds: u64, draws: usize) -> sigmap::Result<Vec<[f64; 3]>> {
-    let mut sums = vec![[0.0; 3]; THRESHOLDS.len()];
+/// Per seed, the registered truth's precision, false-free rate and F1, and
+/// the blurred belief's at each threshold.
+struct Scores {
+    registered: Vec<(u64, [f64; 3])>,
+    blurred: Vec<Vec<(u64, [f64; 3])>>,
+}
+
+fn ceiling(experiment: &Experiment, seeds: u64, draws: usize) -> sigmap::Result<Scores> {
+    let mut scores = Scores {
+        registered: Vec::new(),
+        blurred: vec![Vec::new(); THRESHOLDS.len()],
+    };
     let nominal = experiment.world_from_scene().to_isometry();
     let registration = UncertainPose {
         mean: experiment.world_from_scene(),
         covariance: experiment.profile().world_from_scene,
     };
+    let resolution = experiment.resolution();
     for seed in 1..=seeds {
         let run = simulate(experiment, seed, |_| {})?;
         let offset = experiment.map_offset(seed);
         let observable = observable(experiment, &run.truth.scans, &offset);
-        let truth = ground_truth(experiment, seed);
+        let region = KeyBox::spanning(observable.iter().copied());
+        let truth = run_truth(experiment, seed, &region);
         let registered = registered_placement(experiment, &run.truth, &offset);
+        let registered_tree = voxelise_within(experiment.scene(), resolution, &registered, &region);
         // The blur: further registration errors on top of the run's own.
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let blurred: Vec<_> = (0..draws)
             .map(|_| {
                 let error = nominal.inverse() * draw_pose(&registration, &mut rng).to_isometry();
-                voxelise_in(
+                voxelise_within(
                     experiment.scene(),
-                    experiment.resolution(),
+                    resolution,
                     &(registered * error),
+                    &region,
                 )
             })
             .collect();
-        let cells: Vec<(bool, f64)> = observable
+        let votes_for = |tree: &sigmap::mapping::Octree, key: &Key| {
+            tree.query(key, DEPTH).is_some_and(|v| v >= UNKNOWN_BAND)
+        };
+        // Per scored cell: truly occupied, and the registered truth's call
+        // (`None` where it does not know the cell, which the belief then
+        // leaves unknown too) with the belief.
+        let cells: Vec<(bool, Option<(bool, f64)>)> = observable
             .iter()
             .filter_map(|&code| {
                 let key = Key::from_morton(code);
                 let truly = truth.query(&key, DEPTH)? >= 0.0;
-                let occupied = blurred
-                    .iter()
-                    .filter(|tree| tree.query(&key, DEPTH).is_some_and(|v| v >= 0.0))
-                    .count();
-                Some((truly, occupied as f64 / draws as f64))
+                let known = registered_tree
+                    .query(&key, DEPTH)
+                    .filter(|v| v.abs() >= UNKNOWN_BAND)
+                    .map(|v| {
+                        let votes = blurred.iter().filter(|tree| votes_for(tree, &key)).count();
+                        (v > 0.0, votes as f64 / draws as f64)
+                    });
+                Some((truly, known))
             })
             .collect();
-        for (sum, tau) in sums.iter_mut().zip(THRESHOLDS) {
-            let (mut tp, mut fp, mut fn_) = (0.0, 0.0, 0.0);
-            for &(truly, belief) in &cells {
-                match (truly, belief > tau) {
-                    (true, true) => tp += 1.0,
-                    (false, true) => fp += 1.0,
-                    (true, false) => fn_ += 1.0,
-                    (false, false) => {}
+        let calls = |called: &dyn Fn((bool, f64)) -> bool| -> [f64; 3] {
+            let (mut tp, mut fp, mut fn_, mut false_free) = (0.0, 0.0, 0.0, 0.0);
+            for &(truly, known) in &cells {
+                let called = known.map(called);
+                match (truly, called) {
+                    (true, Some(true)) => tp += 1.0,
+                    (false, Some(true)) => fp += 1.0,
+                    (true, Some(false)) => {
+                        fn_ += 1.0;
+                        false_free += 1.0;
+                    }
+                    (true, None) => fn_ += 1.0,
+                    (false, _) => {}
                 }
             }
-            sum[0] += tp / (tp + fp);
-            sum[1] += fn_ / (tp + fn_);
-            sum[2] += 2.0 * tp / (2.0 * tp + fp + fn_);
+            let precision = tp / (tp + fp);
+            [
+                precision,
+                false_free / (tp + fn_),
+                2.0 * tp / (2.0 * tp + fp + fn_),
+            ]
+        };
+        let registered_scores = score_map(&registered_tree, &truth, &observable);
+        scores.registered.push((
+            seed,
+            [
+                registered_scores.precision,
+                registered_scores.false_free_rate,
+                registered_scores.f1,
+            ],
+        ));
+        debug_assert_eq!(
+            calls(&|(call, _)| call)[1],
+            registered_scores.false_free_rate
+        );
+        for (sums, tau) in scores.blurred.iter_mut().zip(THRESHOLDS) {
+            sums.push((seed, calls(&|(_, belief)| belief > tau)));
         }
     }
-    Ok(sums)
+    Ok(scores)
 }
