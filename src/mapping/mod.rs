@@ -25,6 +25,7 @@
 
 pub mod build;
 pub mod chord;
+pub mod cloud_grids;
 pub mod depth_images;
 pub mod measured;
 pub mod merge;

@@ -131,7 +131,7 @@ pub fn cast_beams(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::sensor::ScannerSpec;
+    use crate::sim::sensor::{ScannerSpec, SensorModel};
 
     fn sphere_scene(dir: &std::path::Path) -> Scene {
         let path = dir.join("s.toml");
@@ -148,8 +148,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let scene = sphere_scene(dir.path());
         let scanner = ScannerSpec {
+            model: SensorModel::Raster,
             horizontal_fov_deg: 40.0,
-            horizontal_step_deg: 1.0,
+            horizontal_step_deg: Some(1.0),
+            width: None,
+            height: None,
             vertical_fov_deg: 40.0,
             vertical_step_deg: None,
             min_range: 0.1,
@@ -207,8 +210,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let scene = sphere_scene(dir.path());
         let scanner = ScannerSpec {
+            model: SensorModel::Raster,
             horizontal_fov_deg: 10.0,
-            horizontal_step_deg: 0.05,
+            horizontal_step_deg: Some(0.05),
+            width: None,
+            height: None,
             vertical_fov_deg: 10.0,
             vertical_step_deg: None,
             min_range: 0.1,

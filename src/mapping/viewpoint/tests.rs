@@ -518,11 +518,14 @@ fn the_scanners_clearing_estimate_counts_the_cells_the_merge_evaluates() {
     // field of view a node at a time and the cells on its boundary one by
     // one, as many as `Scanner::cleared_boundary_cells` estimates (measured:
     // 1.12 and 1.16 times; without the √3 layer, 1.94 and 2.01).
-    use crate::sim::sensor::ScannerSpec;
+    use crate::sim::sensor::{ScannerSpec, SensorModel};
     for (fov, step, resolution) in [([40.0, 30.0], 1.0, 0.05), ([60.0, 10.0], 0.5, 0.02)] {
         let spec = ScannerSpec {
+            model: SensorModel::Raster,
             horizontal_fov_deg: fov[0],
-            horizontal_step_deg: step,
+            horizontal_step_deg: Some(step),
+            width: None,
+            height: None,
             vertical_fov_deg: fov[1],
             vertical_step_deg: Some(step),
             min_range: 0.1,

@@ -1,0 +1,79 @@
+//! The simulated depth camera (`[sensor] model = "pinhole"`,
+//! `experiments/depth_camera.toml`): its beams pool with their neighbours on
+//! the image's pixels, and its runs map and score like the laser's.
+
+use sigmap::experiment::run::runner::run_seed;
+use sigmap::experiment::{simulate, Experiment, SweepValue};
+use sigmap::mapping::measured::measured_ranges;
+use sigmap::mapping::scan::{BeamStatus, Layouts};
+use std::path::Path;
+
+/// The shipped experiment at `pose_error_scale`.
+fn depth_camera(scale: f64) -> Experiment {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/depth_camera.toml");
+    let cell = [("pose_error_scale".to_string(), SweepValue::Number(scale))];
+    Experiment::load_cell(&path, &cell).unwrap()
+}
+
+/// With the experiment's defaults (pooled windows), most hits of the
+/// camera's views are pooled with the pixels around them, and their pooled
+/// ranges lie nearer the true surface than the measured ones (a 3 × 3
+/// window averages nine ranges: a third of the error on a plane).
+#[test]
+fn a_depth_camera_pools_each_pixel_with_its_neighbours() {
+    let experiment = depth_camera(1.0);
+    let run = simulate(&experiment, 1, |_| {}).unwrap();
+    let view = experiment.mapper_view();
+    let Layouts::Shared(layout) = view.layouts else {
+        panic!("a simulated sensor's layout is shared by its views");
+    };
+    assert!(layout.pixels.is_some(), "pooled on the pixels");
+    let (mut raw, mut pooled, mut count, mut hits) = (0.0, 0.0, 0, 0);
+    for (scan, truth) in run.scans.iter().zip(&run.truth.scans) {
+        let ranges = measured_ranges(&view, layout, scan).unwrap();
+        for ((measured, beam), range) in scan.measurements.iter().zip(&truth.beams).zip(&ranges) {
+            if measured.status != BeamStatus::Hit {
+                continue;
+            }
+            hits += 1;
+            let Some(range) = range.filter(|r| r.normal.is_some()) else {
+                continue;
+            };
+            raw += (measured.range - beam.range).powi(2);
+            pooled += (range.range - beam.range).powi(2);
+            count += 1;
+        }
+    }
+    assert!(count * 10 > hits * 7, "{count} of {hits} pooled");
+    let (raw, pooled) = ((raw / count as f64).sqrt(), (pooled / count as f64).sqrt());
+    assert!(pooled < 0.5 * raw, "pooled rms {pooled} against raw {raw}");
+}
+
+/// A run of the shipped experiment at zero pose error: the uncertainty-aware
+/// map of the camera's views is near the truth, at least as complete as
+/// OctoMap's ray update on the same pixels, and calls fewer of the occupied
+/// cells free.
+#[test]
+fn a_depth_camera_run_maps_the_workcell() {
+    let outcome = run_seed(&depth_camera(0.0), 1).unwrap();
+    let row = |method: &str| {
+        outcome
+            .rows
+            .iter()
+            .find(|r| r.method == method)
+            .unwrap_or_else(|| panic!("no {method} row"))
+    };
+    let (unscented, ray) = (row("unscented"), row("ray_update"));
+    let f1 = unscented.get("f1");
+    assert!(
+        f1 > 0.9 && f1 >= ray.get("f1"),
+        "F1 {f1}, ray update {}",
+        ray.get("f1")
+    );
+    let false_free = unscented.get("false_free_rate");
+    assert!(
+        false_free < ray.get("false_free_rate"),
+        "false-free {false_free}, ray update {}",
+        ray.get("false_free_rate")
+    );
+}
