@@ -41,14 +41,20 @@ pub(crate) fn run(args: ExportArgs) -> Result<()> {
         &MapFrame {
             resolution: experiment.resolution(),
             offset: &offset,
+            camera: experiment.scanner().camera.as_ref(),
         },
         &what,
     )?;
     if !args.run.quiet {
         eprintln!(
-            "wrote {} scans of {what} to {} (scans.graph, vp_NNN.ply, poses.txt, README.txt)",
+            "wrote {} scans of {what} to {} (scans.graph, vp_NNN.ply, poses.txt, README.txt{})",
             run.scans.len(),
-            out.display()
+            out.display(),
+            if experiment.scanner().camera.is_some() {
+                ", the depth images in depth/ and depth.txt"
+            } else {
+                ""
+            }
         );
         println!(
             "{}",

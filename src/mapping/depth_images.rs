@@ -249,20 +249,23 @@ pub fn depth_image_node(
     })
 }
 
-/// A 16-bit grayscale PNG of `width` columns holding `depths` row by row
-/// (for tests: the images a depth camera's driver writes).
-#[cfg(test)]
-pub(crate) fn depth_png(width: u32, depths: &[u16]) -> Vec<u8> {
+/// A 16-bit grayscale PNG of `width` columns holding `depths` row by row:
+/// the image a depth camera's driver writes (`sigmap export` of a pinhole
+/// sensor's scans).
+pub fn depth_png(width: u32, depths: &[u16]) -> Result<Vec<u8>, String> {
     let mut bytes = Vec::new();
-    let height = depths.len() as u32 / width;
+    let height = depths.len() as u32 / width.max(1);
     let mut encoder = png::Encoder::new(&mut bytes, width, height);
     encoder.set_color(png::ColorType::Grayscale);
     encoder.set_depth(png::BitDepth::Sixteen);
-    let mut writer = encoder.write_header().expect("PNG header");
     let data: Vec<u8> = depths.iter().flat_map(|d| d.to_be_bytes()).collect();
-    writer.write_image_data(&data).expect("PNG data");
-    writer.finish().expect("PNG end");
-    bytes
+    let encoded = encoder.write_header().and_then(|mut writer| {
+        writer
+            .write_image_data(&data)
+            .and_then(|()| writer.finish())
+    });
+    encoded.map_err(|e| format!("a {width} x {height} depth image: {e}"))?;
+    Ok(bytes)
 }
 
 #[cfg(test)]

@@ -3,6 +3,7 @@
 
 use crate::geometry::{Point3, Vector3};
 use crate::mapping::cloud_grids::cloud_grids;
+use crate::mapping::depth_images::DepthCamera;
 use crate::mapping::scan::{check_clearing, BeamLayout, PixelRaster, MAX_BEAMS_PER_VIEWPOINT};
 use crate::mapping::viewpoint::Raster;
 use serde::Deserialize;
@@ -77,6 +78,11 @@ pub struct Scanner {
     pub min_range: f64,
     /// Farthest reported range (m).
     pub max_range: f64,
+    /// A pinhole's intrinsics, as its depth images are written
+    /// (`sigmap export`): pixel (u, v) with raw depth `d` is the point
+    /// `((u − cx) z / fx, (v − cy) z / fy, z)`, `z = d / scale`. `None` for
+    /// a raster.
+    pub camera: Option<DepthCamera>,
 }
 
 /// How many angles `angles` gives (as a float, so that absurd steps are
@@ -194,6 +200,13 @@ impl ScannerSpec {
                 slots: (0..width * height).map(|k| k as u32).collect(),
             }),
         };
+        let camera = DepthCamera {
+            fx: focal,
+            fy: focal,
+            cx: width as f64 / 2.0 - 0.5,
+            cy: height as f64 / 2.0 - 0.5,
+            scale: depth_scale(self.max_range),
+        };
         Ok(Scanner {
             layout,
             columns: width,
@@ -202,6 +215,7 @@ impl ScannerSpec {
             vertical_angles: vertical,
             min_range: self.min_range,
             max_range: self.max_range,
+            camera: Some(camera),
         })
     }
 
@@ -277,8 +291,18 @@ impl ScannerSpec {
             vertical_angles: vertical,
             min_range: self.min_range,
             max_range: self.max_range,
+            camera: None,
         })
     }
+}
+
+/// The raw depth of one metre in a pinhole's 16-bit depth images: the TUM
+/// benchmark's 5000 (0.2 mm steps, up to 13.1 m), fewer where the maximum
+/// range would overflow 16 bits.
+fn depth_scale(max_range: f64) -> f64 {
+    (f64::from(u16::MAX) / max_range)
+        .floor()
+        .clamp(1.0, DepthCamera::TUM.scale)
 }
 
 impl Scanner {
@@ -370,6 +394,16 @@ mod tests {
         };
         assert!((grid.azimuth.step - 1.0 / focal).abs() < 1e-15);
         assert_eq!(grid.len(layout), 40 * 30);
+        // Its depth images' intrinsics give each pixel its beam back.
+        let camera = scanner.camera.unwrap();
+        assert_eq!(camera.scale, 5000.0, "3 m fits 16 bits at 0.2 mm");
+        for (k, d) in scanner.directions().iter().enumerate() {
+            let p = camera.point(k % 40, k / 40, 5000).unwrap();
+            assert!((p.coords.normalize() - d).norm() < 1e-12, "{k}");
+        }
+        let mut far = pinhole(40, 30);
+        far.max_range = 20.0;
+        assert_eq!(far.build().unwrap().camera.unwrap().scale, 3276.0);
     }
 
     #[test]

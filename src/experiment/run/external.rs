@@ -299,6 +299,7 @@ impl ExternalMapper {
             &MapFrame {
                 resolution: run.resolution,
                 offset: run.offset,
+                camera: None,
             },
             &format!("the run of seed {} for mapper {}", run.seed, self.name),
         )?;

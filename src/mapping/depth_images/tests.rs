@@ -6,7 +6,7 @@ fn pixels_become_points_as_the_benchmark_computes_them() {
     // generate_pointcloud.py: Z = d / 5000, X = (u − 319.5) Z / 525,
     // Y = (v − 239.5) Z / 525; a zero is no measurement.
     let camera = DepthCamera::TUM;
-    let png = depth_png(3, &[5000, 0, 10000, 2500, 7500, 1]);
+    let png = depth_png(3, &[5000, 0, 10000, 2500, 7500, 1]).unwrap();
     let node = depth_image_node(&png, &camera, 7, Isometry3::identity()).unwrap();
     assert_eq!(node.id, 7);
     let expected: Vec<Point3> = [

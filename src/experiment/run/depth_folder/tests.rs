@@ -61,7 +61,7 @@ fn write_folder(experiment: &Experiment, dir: &Path, noise: Option<&RangeModel>)
             })
             .collect();
         let name = format!("depth/{k:03}.png");
-        std::fs::write(dir.join(&name), depth_png(SIZE.0 as u32, &depths)).unwrap();
+        std::fs::write(dir.join(&name), depth_png(SIZE.0 as u32, &depths).unwrap()).unwrap();
         let time = if k < poses.len() {
             1.0 + k as f64 / 10.0
         } else {
@@ -223,7 +223,7 @@ fn bad_folders_get_one_line_naming_the_file() {
     let e = read(&options);
     assert!(e.contains("a.png: is not a PNG image"), "{e}");
     // A header claiming 100 000 x 100 000 pixels: refused before decoding.
-    let mut huge = depth_png(1, &[1]);
+    let mut huge = depth_png(1, &[1]).unwrap();
     huge[16..20].copy_from_slice(&100_000u32.to_be_bytes());
     huge[20..24].copy_from_slice(&100_000u32.to_be_bytes());
     std::fs::write(d.join("depth/a.png"), &huge).unwrap();
@@ -231,7 +231,7 @@ fn bad_folders_get_one_line_naming_the_file() {
     assert!(e.contains("100000 x 100000 pixels"), "{e}");
     // Thirty images whose headers say 2000 x 2000 pixels: 1.2e8 in all,
     // refused from the headers alone (the files hold no pixels).
-    let mut big = depth_png(1, &[1]);
+    let mut big = depth_png(1, &[1]).unwrap();
     big[16..20].copy_from_slice(&2000u32.to_be_bytes());
     big[20..24].copy_from_slice(&2000u32.to_be_bytes());
     let (mut list, mut poses) = (String::new(), String::new());
@@ -260,7 +260,7 @@ fn bad_folders_get_one_line_naming_the_file() {
         "{e}"
     );
     std::fs::create_dir_all(d.join("depth")).unwrap();
-    std::fs::write(d.join("depth/a.png"), depth_png(2, &[0, 0])).unwrap();
+    std::fs::write(d.join("depth/a.png"), depth_png(2, &[0, 0]).unwrap()).unwrap();
     let (nodes, notes) = read_depth_folder(d, &options).unwrap();
     assert!(nodes[0].points.is_empty() && notes.is_empty());
     let e = read(&DepthImages {
