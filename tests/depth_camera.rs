@@ -1,7 +1,11 @@
 //! The simulated depth camera (`[sensor] model = "pinhole"`,
 //! `experiments/depth_camera.toml`): its beams pool with their neighbours on
-//! the image's pixels, and its runs map and score like the laser's.
+//! the image's pixels, its runs map and score like the laser's, and a
+//! mapper of depth images joins its sweep.
 
+mod common;
+
+use common::{portable_experiment, sigmap_ok};
 use sigmap::experiment::run::runner::run_seed;
 use sigmap::experiment::{simulate, Experiment, SweepValue};
 use sigmap::mapping::measured::measured_ranges;
@@ -75,5 +79,65 @@ fn a_depth_camera_run_maps_the_workcell() {
         false_free < ray.get("false_free_rate"),
         "false-free {false_free}, ray update {}",
         ray.get("false_free_rate")
+    );
+}
+
+/// A `[[mapper]]` that reads depth images (sigmap's own `map --scans` on
+/// the run's exported TUM RGB-D folder, given by `{depth}`, `{intrinsics}`
+/// and `{depth_scale}`) is run and scored beside sigmap's methods, on the
+/// same observable cells.
+#[test]
+fn a_mapper_of_depth_images_joins_the_sweep() {
+    let dir = tempfile::tempdir().unwrap();
+    let profile = common::root().join("experiments/profiles/collaborative_poses.toml");
+    let mapper = format!(
+        r#"
+[[mapper]]
+name = "depth_folder"
+command = ["{sigmap}", "map", "--scans", "{{depth}}", "--trajectory", "{{poses}}", "--intrinsics", "{{intrinsics}}", "--depth-scale", "{{depth_scale}}", "--resolution", "{{resolution}}", "--beam-pooling", "windows", "--profile", "{profile}", "--out", "{{dir}}/map.ot", "--quiet"]
+map = "{{dir}}/map.ot"
+"#,
+        sigmap = env!("CARGO_BIN_EXE_sigmap"),
+        profile = profile.display()
+    );
+    let experiment = portable_experiment(
+        "depth_camera",
+        dir.path(),
+        &[
+            ("seeds = \"1..40\"", "seeds = [1]"),
+            (
+                "methods = [\"unscented\", \"blind\", \"ray_update\", \"registered_truth\"]",
+                "methods = [\"unscented\"]",
+            ),
+            ("reference = \"ray_update\"", "reference = \"unscented\""),
+            ("also_paired = [\"registered_truth\"]", ""),
+            ("values = [0.0, 1.0]", "values = [0.0]"),
+        ],
+    );
+    let text = std::fs::read_to_string(&experiment).unwrap();
+    std::fs::write(&experiment, text + &mapper).unwrap();
+    let out = dir.path().join("out");
+    let experiment = experiment.to_str().unwrap();
+    sigmap_ok(&["run", experiment, "--out", out.to_str().unwrap(), "--quiet"]);
+    let runs = std::fs::read_to_string(out.join("runs.csv")).unwrap();
+    let row = |method: &str| -> Vec<String> {
+        let line = runs
+            .lines()
+            .find(|l| l.split(',').nth(2) == Some(method))
+            .unwrap_or_else(|| panic!("no {method} row in {runs}"));
+        line.split(',').map(String::from).collect()
+    };
+    let header: Vec<&str> = runs.lines().next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (ours, theirs) = (row("unscented"), row("depth_folder"));
+    let observable = column("observable_cells");
+    assert_eq!(
+        ours[observable], theirs[observable],
+        "the same scored cells"
+    );
+    let recall: f64 = theirs[column("recall")].parse().unwrap();
+    assert!(
+        recall > 0.9,
+        "the images' map finds the surfaces: recall {recall}"
     );
 }

@@ -11,6 +11,7 @@
 use crate::error::{Error, Result};
 use crate::experiment::output::export::{write_export, MapFrame};
 use crate::geometry::Vector3;
+use crate::mapping::depth_images::DepthCamera;
 use crate::mapping::octomap_io::read_octree;
 use crate::mapping::{Clamp, MapperView, Octree, Scan};
 use serde::Deserialize;
@@ -21,7 +22,7 @@ use std::time::{Duration, Instant};
 
 /// The placeholders a mapper's `command` and `map` may hold, and what each
 /// becomes.
-pub const PLACEHOLDERS: [(&str, &str); 7] = [
+pub const PLACEHOLDERS: [(&str, &str); 10] = [
     (
         "{scans}",
         "the run's OctoMap ScanGraph (believed poses only)",
@@ -38,7 +39,16 @@ pub const PLACEHOLDERS: [(&str, &str); 7] = [
     ("{resolution}", "the experiment's resolution (m)"),
     ("{max_range}", "the scanner's maximum range (m)"),
     ("{seed}", "the run's seed"),
+    (
+        "{depth}",
+        "a depth camera's images: the folder of depth.txt and depth/ (TUM RGB-D layout)",
+    ),
+    ("{intrinsics}", "a depth camera's fx,fy,cx,cy (px)"),
+    ("{depth_scale}", "a depth camera's raw depth per metre"),
 ];
+
+/// The placeholders of a depth camera's images, which a raster has not.
+const DEPTH_PLACEHOLDERS: [&str; 3] = ["{depth}", "{intrinsics}", "{depth_scale}"];
 
 /// The longest a mapper may be given (s): a day.
 const MAX_TIMEOUT_S: f64 = 86_400.0;
@@ -79,9 +89,15 @@ pub struct ExternalMapper {
 
 impl MapperSpec {
     /// Checks the table: a new method name, a command, known placeholders
-    /// and a sane timeout. `taken` are the names already in use. Errors are
-    /// phrased for the experiment file.
-    pub fn check(self, base: &Path, taken: &[&str]) -> std::result::Result<ExternalMapper, String> {
+    /// (a depth camera's only with one: `camera`) and a sane timeout.
+    /// `taken` are the names already in use. Errors are phrased for the
+    /// experiment file.
+    pub fn check(
+        self,
+        base: &Path,
+        taken: &[&str],
+        camera: bool,
+    ) -> std::result::Result<ExternalMapper, String> {
         let name = self.name.trim().to_string();
         let what = format!("[[mapper]] '{name}'");
         let valid = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '-';
@@ -102,6 +118,13 @@ impl MapperSpec {
         }
         for text in self.command.iter().chain([&self.map]) {
             check_placeholders(text).map_err(|e| format!("{what}: {e}"))?;
+            let depth = DEPTH_PLACEHOLDERS.iter().find(|p| text.contains(*p));
+            if let (Some(placeholder), false) = (depth, camera) {
+                return Err(format!(
+                    "{what}: {placeholder} needs a depth camera's images, and the [sensor] is a \
+                     raster scanner (model = \"pinhole\" gives a depth camera)"
+                ));
+            }
         }
         if self.map.trim().is_empty() {
             return Err(format!(
@@ -175,18 +198,31 @@ struct Placeholders {
     resolution: f64,
     max_range: f64,
     seed: u64,
+    camera: Option<DepthCamera>,
 }
 
 impl Placeholders {
     fn fill(&self, text: &str) -> String {
         let path = |p: &Path| p.to_string_lossy().into_owned();
-        text.replace("{scans}", &path(&self.scans))
+        let text = text
+            .replace("{scans}", &path(&self.scans))
             .replace("{poses}", &path(&self.poses))
             .replace("{plys}", &path(&self.plys))
             .replace("{dir}", &path(&self.dir))
             .replace("{resolution}", &self.resolution.to_string())
             .replace("{max_range}", &self.max_range.to_string())
-            .replace("{seed}", &self.seed.to_string())
+            .replace("{seed}", &self.seed.to_string());
+        match &self.camera {
+            // The export folder holds depth.txt and depth/.
+            Some(c) => text
+                .replace("{depth}", &path(&self.plys))
+                .replace(
+                    "{intrinsics}",
+                    &format!("{:?},{:?},{:?},{:?}", c.fx, c.fy, c.cx, c.cy),
+                )
+                .replace("{depth_scale}", &c.scale.to_string()),
+            None => text,
+        }
     }
 }
 
@@ -206,6 +242,8 @@ pub struct MapperRun<'a> {
     pub offset: &'a Vector3,
     /// The clamp `.bt` leaves are read with.
     pub clamp: Clamp,
+    /// A depth camera's intrinsics: its images are exported too.
+    pub camera: Option<&'a DepthCamera>,
 }
 
 impl ExternalMapper {
@@ -299,7 +337,7 @@ impl ExternalMapper {
             &MapFrame {
                 resolution: run.resolution,
                 offset: run.offset,
-                camera: None,
+                camera: run.camera,
             },
             &format!("the run of seed {} for mapper {}", run.seed, self.name),
         )?;
@@ -311,6 +349,7 @@ impl ExternalMapper {
             resolution: run.resolution,
             max_range: run.view.max_range,
             seed: run.seed,
+            camera: run.camera.copied(),
         };
         let args: Vec<String> = self.command[1..].iter().map(|a| places.fill(a)).collect();
         let stderr_path = folder.path.join("stderr.txt");

@@ -288,6 +288,7 @@ impl<'a> SeedRun<'a> {
                 resolution: experiment.resolution(),
                 offset: &self.offset,
                 clamp: experiment.map().clamp(),
+                camera: experiment.scanner().camera.as_ref(),
             }),
         }
     }

@@ -16,10 +16,10 @@ fn spec(command: &[&str], map: &str) -> MapperSpec {
 fn a_mapper_table_is_checked_before_any_run() {
     let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
     let ok = spec(&["graph2tree", "-i", "{scans}"], "{dir}/map.bt.ot")
-        .check(&base, &["ray_update"])
+        .check(&base, &["ray_update"], false)
         .unwrap();
     assert_eq!(ok.timeout, Duration::from_secs(300));
-    let err = |s: MapperSpec, taken: &[&str]| s.check(&base, taken).unwrap_err();
+    let err = |s: MapperSpec, taken: &[&str]| s.check(&base, taken, false).unwrap_err();
     assert!(err(spec(&["x", "{scan}"], "m.bt"), &[]).contains("unknown placeholder {scan}"));
     assert!(err(spec(&["x", "{scans"], "m.bt"), &[]).contains("does not close"));
     assert!(err(spec(&[], "m.bt"), &[]).contains("must name a program"));
@@ -42,14 +42,14 @@ fn a_script_beside_the_experiment_is_passed_by_its_absolute_path() {
         &["python3", "../mappers/ray_mapper.py", "{scans}"],
         "{dir}/m.ot",
     )
-    .check(&base, &[])
+    .check(&base, &[], false)
     .unwrap();
     let script = PathBuf::from(&mapper.command[1]);
     assert!(script.is_absolute() && script.ends_with("mappers/ray_mapper.py"));
     assert_eq!(mapper.command[2], "{scans}");
     // The script is an input of the fingerprint beside the program.
     let missing = spec(&["no-such-mapper-anywhere"], "m.bt")
-        .check(&base, &[])
+        .check(&base, &[], false)
         .unwrap();
     let e = missing.program().unwrap_err().to_string();
     assert!(
@@ -57,7 +57,7 @@ fn a_script_beside_the_experiment_is_passed_by_its_absolute_path() {
         "{e}"
     );
     let sh = spec(&["sh", "../mappers/ray_mapper.py"], "m.bt")
-        .check(&base, &[])
+        .check(&base, &[], false)
         .unwrap();
     let inputs = sh.inputs().unwrap();
     assert!(inputs.contains(&script) && inputs.len() == 2, "{inputs:?}");
@@ -73,11 +73,38 @@ fn placeholders_become_the_runs_paths_and_numbers() {
         resolution: 0.01,
         max_range: 2.0,
         seed: 7,
+        camera: None,
     };
     assert_eq!(
         places.fill("{dir}/map_{seed}.bt {scans} {poses} {plys} {resolution} {max_range}"),
         "/w/map_7.bt /s/scans.graph /s/poses.txt /s 0.01 2"
     );
+    // A depth camera's: its images' folder (the export's) and intrinsics.
+    let camera = Placeholders {
+        camera: Some(DepthCamera {
+            fx: 111.5,
+            fy: 111.5,
+            cx: 105.5,
+            cy: 59.5,
+            scale: 5000.0,
+        }),
+        ..places
+    };
+    assert_eq!(
+        camera.fill("{depth}/depth.txt {intrinsics} {depth_scale}"),
+        "/s/depth.txt 111.5,111.5,105.5,59.5 5000"
+    );
+}
+
+#[test]
+fn a_depth_cameras_placeholders_need_a_depth_camera() {
+    let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments");
+    for placeholder in DEPTH_PLACEHOLDERS {
+        let mapper = spec(&["x", placeholder], "m.ot");
+        let e = mapper.clone().check(&base, &[], false).unwrap_err();
+        assert!(e.contains("needs a depth camera's images"), "{e}");
+        assert!(mapper.check(&base, &[], true).is_ok(), "{placeholder}");
+    }
 }
 
 #[test]

@@ -308,11 +308,13 @@ fn own_methods(
 }
 
 /// `own` then the file's `[[mapper]]` tables (their programs relative to
-/// `folder`), each name new.
+/// `folder`), each name new; the depth images' placeholders only with a
+/// depth camera (`camera`).
 fn with_mappers(
     own: &[Method],
     mappers: Vec<crate::experiment::run::external::MapperSpec>,
     folder: &Path,
+    camera: bool,
 ) -> std::result::Result<Vec<RunMethod>, String> {
     let mut methods: Vec<RunMethod> = own.iter().copied().map(RunMethod::Own).collect();
     for spec in mappers {
@@ -321,7 +323,7 @@ fn with_mappers(
             .map(|m| m.as_str())
             .chain(methods.iter().map(RunMethod::as_str))
             .collect();
-        let mapper = spec.check(folder, &taken)?;
+        let mapper = spec.check(folder, &taken, camera)?;
         methods.push(RunMethod::External(std::sync::Arc::new(mapper)));
     }
     Ok(methods)
@@ -408,7 +410,8 @@ impl Experiment {
         let scanner =
             checked_scanner(&file, scanner, &map, builds_grids, resolution).map_err(&bad)?;
         scene.check_resolution(resolution)?;
-        let methods = with_mappers(&own, file.mappers, dir).map_err(&bad)?;
+        let camera = scanner.camera.is_some();
+        let methods = with_mappers(&own, file.mappers, dir, camera).map_err(&bad)?;
         // With the methods overridden (`sigmap map --method`) the file's
         // reference counts only if it is still among them.
         let named = file.reference.as_deref().filter(|name| {
