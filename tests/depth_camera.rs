@@ -141,3 +141,43 @@ map = "{{dir}}/map.ot"
         "the images' map finds the surfaces: recall {recall}"
     );
 }
+
+/// `sigmap simulate` of a depth camera writes its intrinsics into
+/// `scan.toml`, and they give every beam of the scan files its direction.
+#[test]
+fn a_depth_cameras_scan_files_carry_its_intrinsics() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scans");
+    let experiment = common::root().join("experiments/depth_camera.toml");
+    sigmap_ok(&[
+        "simulate",
+        experiment.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let manifest: toml::Table = std::fs::read_to_string(out.join("scan.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let pinhole = manifest["pinhole"].as_table().expect("a [pinhole] table");
+    let number = |key: &str| pinhole[key].as_float().unwrap();
+    let (fx, fy, cx, cy) = (number("fx"), number("fy"), number("cx"), number("cy"));
+    let beams = std::fs::read_to_string(out.join("vp_000.csv")).unwrap();
+    let mut rows = 0;
+    for line in beams.lines().skip(1) {
+        let fields: Vec<f64> = line
+            .split(',')
+            .take(6)
+            .map(|f| f.parse().unwrap())
+            .collect();
+        let (row, column) = (fields[1], fields[2]);
+        let ray = [(column - cx) / fx, (row - cy) / fy, 1.0];
+        let norm = ray.iter().map(|v| v * v).sum::<f64>().sqrt();
+        for (d, r) in fields[3..6].iter().zip(ray) {
+            assert!((d - r / norm).abs() < 1e-12, "{line}");
+        }
+        rows += 1;
+    }
+    assert_eq!(rows, 212 * 120);
+}

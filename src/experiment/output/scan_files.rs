@@ -113,6 +113,19 @@ struct ScanManifest<'a> {
     min_range: f64,
     max_range: f64,
     range: &'a crate::uncertainty::RangeModel,
+    /// A depth camera's intrinsics (px): pixel (column, row) looks along
+    /// `((column − cx) / fx, (row − cy) / fy, 1)`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pinhole: Option<Pinhole>,
+}
+
+/// A depth camera's intrinsics in `scan.toml`.
+#[derive(serde::Serialize)]
+struct Pinhole {
+    fx: f64,
+    fy: f64,
+    cx: f64,
+    cy: f64,
 }
 
 /// Writes every file of a simulated run into `dir` (which must exist).
@@ -133,6 +146,12 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
         min_range: scanner.min_range,
         max_range: scanner.max_range,
         range: &experiment.profile().range,
+        pinhole: scanner.camera.map(|c| Pinhole {
+            fx: c.fx,
+            fy: c.fy,
+            cx: c.cx,
+            cy: c.cy,
+        }),
     };
     let manifest = format!(
         "# sigmap {} scan set; see docs/files.md, \"Scan files\".\n{}",
