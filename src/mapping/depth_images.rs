@@ -29,7 +29,7 @@ pub const MAX_TIME_GAP: f64 = 0.02;
 
 /// A pinhole depth camera: focal lengths and principal point in pixels,
 /// and the raw depth value of one metre.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct DepthCamera {
     /// Focal lengths (px).
     pub fx: f64,

@@ -5,6 +5,7 @@
 use crate::error::{Error, Result};
 use crate::experiment::{Experiment, SimulatedRun};
 use crate::geometry::{Isometry3, Matrix6, Pose, Vector3};
+use crate::mapping::depth_images::DepthCamera;
 use crate::mapping::measured::{pooled_ray_ends, ray_inputs_into};
 use crate::mapping::scan::{BeamStatus, MapperView, Scan};
 use crate::sim::scan::ScanTruth;
@@ -114,18 +115,10 @@ struct ScanManifest<'a> {
     max_range: f64,
     range: &'a crate::uncertainty::RangeModel,
     /// A depth camera's intrinsics (px): pixel (column, row) looks along
-    /// `((column − cx) / fx, (row − cy) / fy, 1)`.
+    /// `((column − cx) / fx, (row − cy) / fy, 1)`; `scale`, the raw depth of
+    /// a metre in its exported images.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pinhole: Option<Pinhole>,
-}
-
-/// A depth camera's intrinsics in `scan.toml`.
-#[derive(serde::Serialize)]
-struct Pinhole {
-    fx: f64,
-    fy: f64,
-    cx: f64,
-    cy: f64,
+    pinhole: Option<&'a DepthCamera>,
 }
 
 /// Writes every file of a simulated run into `dir` (which must exist).
@@ -146,12 +139,7 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
         min_range: scanner.min_range,
         max_range: scanner.max_range,
         range: &experiment.profile().range,
-        pinhole: scanner.camera.map(|c| Pinhole {
-            fx: c.fx,
-            fy: c.fy,
-            cx: c.cx,
-            cy: c.cy,
-        }),
+        pinhole: scanner.camera.as_ref(),
     };
     let manifest = format!(
         "# sigmap {} scan set; see docs/files.md, \"Scan files\".\n{}",
