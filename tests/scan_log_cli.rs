@@ -69,3 +69,65 @@ fn a_scan_log_maps_and_scores_as_the_graph_of_the_same_scans() {
     assert!(by_graph.contains("f1"), "{by_graph}");
     assert_eq!(by_graph, by_log);
 }
+
+/// A depth camera's error (`[range] along = "depth"`) holds for beams
+/// within 85° of its optical axis: a recorded cloud with a point beside the
+/// camera is refused by the maps that use the error, with the point's beam,
+/// and mapped by the ray update, which does not.
+#[test]
+fn a_depth_cameras_error_refuses_a_point_beside_the_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let path = |p: &std::path::Path| p.display().to_string();
+    let mut log = String::from("NODE 0 0 0 0 0 0\n");
+    for i in 0..21 {
+        for j in 0..21 {
+            let (x, y) = (0.03 * (i as f64 - 10.0), 0.03 * (j as f64 - 10.0));
+            log.push_str(&format!("{x} {y} 1\n"));
+        }
+    }
+    log.push_str("1 0 0.02\n");
+    let scans = d.join("scans.txt");
+    std::fs::write(&scans, log).unwrap();
+    // The recorded poses' profile with the depth camera's range error.
+    let poses = root().join("experiments/profiles/collaborative_poses.toml");
+    let poses = std::fs::read_to_string(poses).unwrap();
+    let profile = d.join("depth_poses.toml");
+    std::fs::write(
+        &profile,
+        poses.replace("k = 0.002 ", "k2 = 0.0036\nalong = \"depth\"\n"),
+    )
+    .unwrap();
+    let profile = path(&profile);
+    let args = |method: &'static str, out: &str| {
+        [
+            "map",
+            "--scans",
+            &path(&scans),
+            "--profile",
+            &profile,
+            "--method",
+            method,
+            "--resolution",
+            "0.02",
+            "--max-range",
+            "2",
+            "-q",
+            "--out",
+            out,
+        ]
+        .map(str::to_string)
+    };
+    let out = path(&d.join("map.ot"));
+    let refused_args = args("unscented", &out);
+    let refused_args: Vec<&str> = refused_args.iter().map(String::as_str).collect();
+    common::refused(
+        &refused_args,
+        "method unscented, scan 0: beam 441",
+        "points 88.9 deg off the optical axis (+z), and [range] along = \"depth\"",
+    );
+    assert!(!d.join("map.ot").exists());
+    let ray = args("ray_update", &out);
+    sigmap_ok(&ray.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(d.join("map.ot").exists());
+}

@@ -126,6 +126,13 @@ fn check_method(view: &MapperView, scans: &[Scan], method: Method, resolution: f
         Layouts::PerScan(layouts) => &layouts[..scans.len().min(layouts.len())],
     };
     for (i, layout) in layouts.iter().enumerate() {
+        let beams = match view.layouts {
+            Layouts::Shared(_) => format!("method {method}, the sensor's beams"),
+            Layouts::PerScan(_) => format!("method {method}, scan {i}"),
+        };
+        view.range
+            .check_directions(&layout.directions, &beams)
+            .map_err(Error::Usage)?;
         match layout.half_angles {
             Some(half_angles) => check_clearing(half_angles, view.max_range, resolution)
                 .map_err(|e| Error::Usage(format!("method {method}: {e}")))?,
@@ -343,7 +350,10 @@ impl<'a> PreparedScan<'a> {
             &self.origin.covariance,
         );
         if view.settings.interpolate_beams {
-            local.add_surface_samples(&view.settings.sample_gate, view.range);
+            local.add_surface_samples(
+                &view.settings.sample_gate,
+                (view.range, &grid.camera_from_grid),
+            );
         }
         local
     }

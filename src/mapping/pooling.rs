@@ -70,20 +70,20 @@ impl Pooling {
 /// large planar faces grown over those windows (with [`Pooling::Faces`],
 /// only the faces' beams keep a pooled range). `ranges[k]` is beam k's
 /// measured range (`None`: no hit), `directions[k]` its unit direction,
-/// beams row by row with `columns` per row; `sigma(r)` is the range noise
-/// at range r and `angular_sigma` the beams' direction noise (rad).
+/// beams row by row with `columns` per row; `sigma(d, r)` is the range
+/// noise of the beam along `d` at range r and `angular_sigma` the beams' direction noise (rad).
 pub fn pool_ranges(
     pooling: Pooling,
     columns: usize,
     directions: &[Vector3],
     ranges: &[Option<f64>],
-    sigma: impl Fn(f64) -> f64 + Sync,
+    sigma: impl Fn(&Vector3, f64) -> f64 + Sync,
     angular_sigma: f64,
 ) -> Vec<Pooled> {
     let raw = |k: usize| {
         ranges[k].map(|r| PooledRange {
             range: r,
-            sigma: sigma(r),
+            sigma: sigma(&directions[k], r),
             normal: None,
         })
     };
@@ -95,7 +95,7 @@ pub fn pool_ranges(
     let hits: Vec<Option<Neighbour>> = ranges
         .par_iter()
         .zip(directions)
-        .map(|(r, d)| r.map(|r| Neighbour::new(d, r, sigma(r), r * angular_sigma)))
+        .map(|(r, d)| r.map(|r| Neighbour::new(d, r, sigma(d, r), r * angular_sigma)))
         .collect();
     // The windows are independent of each other: spread over the threads,
     // collected in beam order (the same result on any number of threads).

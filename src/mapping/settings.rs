@@ -9,7 +9,6 @@ use super::merge::MergeOptions;
 use super::octree::{logodds, Clamp};
 use super::pooling::Pooling;
 use super::ray_update::UpdateRule;
-use crate::uncertainty::RangeModel;
 
 /// How every map of an experiment is built.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -96,15 +95,23 @@ impl SampleGate {
     }
 
     /// The noise the gate gives a hit at range `r` whose beam has σ `sigma`
-    /// along it, for a sensor of noise `range`: (along the beam, sideways).
-    pub fn noise(&self, r: f64, sigma: f64, range: &RangeModel) -> (f64, f64) {
+    /// along it, for a sensor whose own range σ on that beam is
+    /// `sensor_sigma()` and whose direction noise is `angular_sigma`:
+    /// (along the beam, sideways).
+    pub fn noise(
+        &self,
+        r: f64,
+        sigma: f64,
+        sensor_sigma: impl FnOnce() -> f64,
+        angular_sigma: f64,
+    ) -> (f64, f64) {
         let along = if self.sensor_sigma {
-            range.sigma(r)
+            sensor_sigma()
         } else {
             sigma
         };
         let lateral = if self.direction_noise {
-            r * range.angular_sigma
+            r * angular_sigma
         } else {
             0.0
         };
@@ -276,6 +283,8 @@ impl MapSettings {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::Vector3;
+    use crate::uncertainty::RangeModel;
 
     #[test]
     fn octomap_probabilities_give_octomap_constants_bit_for_bit() {
@@ -326,13 +335,15 @@ mod tests {
             k: 0.002,
             k2: 0.0,
             angular_sigma: 0.001,
-            dropout: 0.0,
+            ..RangeModel::NOISELESS
         };
-        assert_eq!(widened.noise(0.5, 0.002, &sensor), (0.012, 0.0));
-        let (along, lateral) = gate("model").unwrap().noise(0.5, 0.003, &sensor);
+        let own = || sensor.sigma(&Vector3::z(), 0.5);
+        let angular = sensor.angular_sigma;
+        assert_eq!(widened.noise(0.5, 0.002, own, angular), (0.012, 0.0));
+        let (along, lateral) = gate("model").unwrap().noise(0.5, 0.003, own, angular);
         assert_eq!((along, lateral), (0.003, 0.0005));
         // The sensor's own σ(0.5) = 2 mm, not the beam's 3 mm.
-        let (along, lateral) = gate("sensor").unwrap().noise(0.5, 0.003, &sensor);
+        let (along, lateral) = gate("sensor").unwrap().noise(0.5, 0.003, own, angular);
         assert_eq!((along, lateral), (0.002, 0.0005));
         for bad in ["modle", "range*0.5", "model*", "model*nan", "range*1000"] {
             let message = gate(bad).unwrap_err();

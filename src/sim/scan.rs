@@ -120,7 +120,7 @@ pub fn cast_beams(
                 } else {
                     Measurement {
                         status: BeamStatus::Hit,
-                        range: toi + range.sigma(toi) * noise,
+                        range: toi + range.sigma(d, toi) * noise,
                     }
                 };
             }
@@ -132,6 +132,7 @@ pub fn cast_beams(
 mod tests {
     use super::*;
     use crate::sim::sensor::{ScannerSpec, SensorModel};
+    use crate::uncertainty::RangeAxis;
 
     fn sphere_scene(dir: &std::path::Path) -> Scene {
         let path = dir.join("s.toml");
@@ -143,23 +144,28 @@ mod tests {
         Scene::load(&path).unwrap()
     }
 
-    #[test]
-    fn exact_sensor_measures_the_sphere() {
-        let dir = tempfile::tempdir().unwrap();
-        let scene = sphere_scene(dir.path());
-        let scanner = ScannerSpec {
+    /// A square raster `fov_deg` across in steps of `step_deg`, 0.1–5 m.
+    fn raster(fov_deg: f64, step_deg: f64) -> Scanner {
+        ScannerSpec {
             model: SensorModel::Raster,
-            horizontal_fov_deg: 40.0,
-            horizontal_step_deg: Some(1.0),
+            horizontal_fov_deg: fov_deg,
+            horizontal_step_deg: Some(step_deg),
             width: None,
             height: None,
-            vertical_fov_deg: 40.0,
+            vertical_fov_deg: fov_deg,
             vertical_step_deg: None,
             min_range: 0.1,
             max_range: 5.0,
         }
         .build()
-        .unwrap();
+        .unwrap()
+    }
+
+    #[test]
+    fn exact_sensor_measures_the_sphere() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = sphere_scene(dir.path());
+        let scanner = raster(40.0, 1.0);
         let exact = RangeModel::NOISELESS;
         let (m, t) = cast_beams(
             &scene,
@@ -209,25 +215,14 @@ mod tests {
     fn range_noise_has_the_model_sigma() {
         let dir = tempfile::tempdir().unwrap();
         let scene = sphere_scene(dir.path());
-        let scanner = ScannerSpec {
-            model: SensorModel::Raster,
-            horizontal_fov_deg: 10.0,
-            horizontal_step_deg: Some(0.05),
-            width: None,
-            height: None,
-            vertical_fov_deg: 10.0,
-            vertical_step_deg: None,
-            min_range: 0.1,
-            max_range: 5.0,
-        }
-        .build()
-        .unwrap();
+        let scanner = raster(10.0, 0.05);
         let model = RangeModel {
             sigma0: 0.001,
             k: 0.002,
             k2: 0.004,
             angular_sigma: 0.0,
             dropout: 0.1,
+            along: RangeAxis::Ray,
         };
         let (m, t) = cast_beams(
             &scene,
@@ -240,8 +235,9 @@ mod tests {
         let z: Vec<f64> = m
             .iter()
             .zip(&t)
-            .filter(|(m, _)| m.status == BeamStatus::Hit)
-            .map(|(m, t)| (m.range - t.range) / model.sigma(t.range))
+            .zip(scanner.directions())
+            .filter(|((m, _), _)| m.status == BeamStatus::Hit)
+            .map(|((m, t), d)| (m.range - t.range) / model.sigma(d, t.range))
             .collect();
         let n = z.len() as f64;
         let mean = z.iter().sum::<f64>() / n;
@@ -258,6 +254,76 @@ mod tests {
             (p - 0.1).abs() < 5.0 * (0.09 / (dropped + n)).sqrt(),
             "dropout {p}"
         );
+    }
+
+    /// A depth camera's error is its depth's: facing a wall square to its
+    /// optical axis, every pixel's depth (the range times the cosine of its
+    /// angle to the axis) has the σ the model gives that depth, in the
+    /// image's corners as at its centre, where an error along the ray would
+    /// give the corners' depths less (by that cosine).
+    #[test]
+    fn a_depth_cameras_error_is_the_same_on_every_pixel_of_a_wall() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("wall.toml");
+        std::fs::write(
+            &path,
+            "[workspace]\nmin = [-3, -3, -1]\nmax = [3, 3, 3]\n[[object]]\nshape = \"box\"\n\
+             size = [5, 5, 0.1]\nxyz = [0, 0, 1.55]\n",
+        )
+        .unwrap();
+        let scene = Scene::load(&path).unwrap();
+        let scanner = ScannerSpec {
+            model: SensorModel::Pinhole,
+            horizontal_fov_deg: 87.0,
+            horizontal_step_deg: None,
+            width: Some(212),
+            height: Some(120),
+            vertical_fov_deg: 0.0,
+            vertical_step_deg: None,
+            min_range: 0.1,
+            max_range: 5.0,
+        }
+        .build()
+        .unwrap();
+        let model = RangeModel {
+            sigma0: 0.0005,
+            k2: 0.0036,
+            along: RangeAxis::Depth,
+            ..RangeModel::NOISELESS
+        };
+        // The wall's face is 1.5 m deep: σ(z) = 8.6 mm at every pixel.
+        let depth_sigma = 0.0005 + 0.0036 * 1.5 * 1.5;
+        let (m, t) = cast_beams(
+            &scene,
+            &scanner,
+            &model,
+            &Isometry3::identity(),
+            &Streams::new(9),
+            0,
+        );
+        // Standardised depth errors of the pixels within 20 deg of the
+        // axis and of those beyond 40 deg (the corners, cos θ 0.67–0.77).
+        let (mut centre, mut corners) = (Vec::new(), Vec::new());
+        for ((m, t), d) in m.iter().zip(&t).zip(scanner.directions()) {
+            assert_eq!(m.status, BeamStatus::Hit);
+            assert!((t.range * d.z - 1.5).abs() < 1e-9);
+            let z = (m.range - t.range) * d.z / depth_sigma;
+            match d.z.acos().to_degrees() {
+                a if a < 20.0 => centre.push(z),
+                a if a > 40.0 => corners.push(z),
+                _ => {}
+            }
+        }
+        for (name, z) in [("centre", centre), ("corners", corners)] {
+            let n = z.len() as f64;
+            assert!(n > 1000.0, "{name}: {n} pixels");
+            let var = z.iter().map(|v| v * v).sum::<f64>() / n;
+            // 5 standard errors of a variance, √(2/n).
+            assert!(
+                (var - 1.0).abs() < 5.0 * (2.0 / n).sqrt(),
+                "{name}: depth variance {var} of the model's over {n} pixels"
+            );
+        }
     }
 
     #[test]

@@ -40,7 +40,7 @@ pub use covariance::{
 };
 pub use jacobian::JacobianPropagator;
 pub use monte_carlo::MonteCarloPropagator;
-pub use range::RangeModel;
+pub use range::{RangeAxis, RangeModel};
 pub use unscented::{SigmaSet, UnscentedPropagator};
 
 use crate::geometry::{Matrix3, Matrix6, Pose, Vector3};

@@ -6,7 +6,8 @@
 use crate::geometry::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
-/// Gaussian range error `σ(r) = σ0 + k r + k2 r²`, optional angular jitter of
+/// Gaussian range error `σ(r) = σ0 + k r + k2 r²` (or a depth camera's
+/// `σ(z)` of the depth, [`RangeAxis::Depth`]), optional angular jitter of
 /// the true beam direction, optional dropout.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -28,7 +29,37 @@ pub struct RangeModel {
     /// Probability that a beam that hits returns nothing.
     #[serde(default)]
     pub dropout: f64,
+    /// What `σ0 + k x + k2 x²` is the error of: the range along the beam
+    /// (the default) or a depth camera's depth along its optical axis.
+    #[serde(default, skip_serializing_if = "RangeAxis::is_ray")]
+    pub along: RangeAxis,
 }
+
+/// What a [`RangeModel`]'s `σ0 + k x + k2 x²` measures (docs/math.md §4.5).
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum RangeAxis {
+    /// The range along the beam, `x = r`: a laser scanner's time of flight.
+    #[default]
+    Ray,
+    /// The depth along the camera's optical axis (the sensor frame's +z),
+    /// `x = z = r cos θ` for a beam `θ` off the axis: a depth camera
+    /// triangulates depth, so its pixel's range error is `σ(z) / cos θ`
+    /// along the pixel's ray.
+    Depth,
+}
+
+impl RangeAxis {
+    /// Whether this is the default, [`RangeAxis::Ray`].
+    pub fn is_ray(&self) -> bool {
+        *self == RangeAxis::Ray
+    }
+}
+
+/// The least cosine between a depth camera's beam and its optical axis
+/// (85°): a pinhole's field of view stays well inside it, and beyond it the
+/// depth's error along the ray, `σ(z) / cos θ`, says nothing.
+pub const MIN_DEPTH_COSINE: f64 = 0.087;
 
 impl RangeModel {
     /// A sensor without noise or dropouts: every range exact, every
@@ -39,6 +70,7 @@ impl RangeModel {
         k2: 0.0,
         angular_sigma: 0.0,
         dropout: 0.0,
+        along: RangeAxis::Ray,
     };
 
     /// Checks the numbers; errors are phrased for the `[range]` table.
@@ -67,17 +99,56 @@ impl RangeModel {
         Ok(())
     }
 
-    /// Range standard deviation at range `r`: `σ0 + k r + k2 r²`.
+    /// Range standard deviation of the beam along the unit sensor-frame
+    /// `direction` at range `r` (docs/math.md §4.5): `σ0 + k r + k2 r²`
+    /// along a ray, or for a depth camera `σ(z) / cos θ` with `cos θ = d_z`,
+    /// `z = r cos θ`.
     #[inline]
-    pub fn sigma(&self, r: f64) -> f64 {
-        // Without k2 the sum is σ0 + k r to the bit.
-        self.sigma0 + self.k * r + self.k2 * r * r
+    pub fn sigma(&self, direction: &Vector3, r: f64) -> f64 {
+        match self.along {
+            RangeAxis::Ray => self.polynomial(r),
+            RangeAxis::Depth => {
+                let cos = direction.z;
+                self.polynomial(r * cos) / cos
+            }
+        }
+    }
+
+    /// `σ0 + k x + k2 x²`.
+    #[inline]
+    fn polynomial(&self, x: f64) -> f64 {
+        // Without k2 the sum is σ0 + k x to the bit.
+        self.sigma0 + self.k * x + self.k2 * x * x
+    }
+
+    /// Refuses beams a depth camera's error says nothing about: with
+    /// [`RangeAxis::Depth`], a sensor-frame direction more than 85° off the
+    /// optical axis (+z) or behind it. `what` names the beams' source.
+    pub fn check_directions(&self, directions: &[Vector3], what: &str) -> Result<(), String> {
+        if self.along == RangeAxis::Ray {
+            return Ok(());
+        }
+        match directions.iter().position(|d| {
+            let cos = d.z / d.norm();
+            cos.is_nan() || cos < MIN_DEPTH_COSINE
+        }) {
+            Some(i) => Err(format!(
+                "{what}: beam {i} points {:.1} deg off the optical axis (+z), and [range] along = \
+                 \"depth\" (a depth camera's error) holds for beams within 85 deg of it; map it \
+                 with a profile whose range error is along the ray",
+                (directions[i].z / directions[i].norm())
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees()
+            )),
+            None => Ok(()),
+        }
     }
 
     /// Covariance of the measured point `r d` in the laser frame (docs/math.md §4.5):
     /// `σ_r² d dᵀ + r² σ_a² (I − d dᵀ)` for a unit direction `d`.
     pub fn point_covariance(&self, direction: &Vector3, r: f64) -> Matrix3 {
-        self.point_covariance_with(direction, r, self.sigma(r))
+        self.point_covariance_with(direction, r, self.sigma(direction, r))
     }
 
     /// The same with the range standard deviation `sr` given (a pooled range).
@@ -99,7 +170,7 @@ mod tests {
             k: 0.002,
             k2: 0.0,
             angular_sigma: 0.001,
-            dropout: 0.0,
+            ..RangeModel::NOISELESS
         };
         let d = Vector3::new(0.0, 0.6, 0.8);
         let c = model.point_covariance(&d, 2.0);
@@ -131,19 +202,82 @@ mod tests {
         let linear = RangeModel {
             sigma0: 0.001,
             k: 0.002,
-            k2: 0.0,
-            angular_sigma: 0.0,
-            dropout: 0.0,
+            ..RangeModel::NOISELESS
         };
         let depth_camera = RangeModel {
             k2: 0.004,
             ..linear
         };
-        for r in [0.3, 1.0, 2.5] {
-            assert_eq!(linear.sigma(r).to_bits(), (0.001 + 0.002 * r).to_bits());
+        let d = Vector3::new(0.0, 0.6, 0.8);
+        for r in [0.3f64, 1.0, 2.5] {
+            assert_eq!(linear.sigma(&d, r).to_bits(), (0.001 + 0.002 * r).to_bits());
             let expected = 0.001 + 0.002 * r + 0.004 * r * r;
-            assert!((depth_camera.sigma(r) - expected).abs() < 1e-15);
+            assert!((depth_camera.sigma(&d, r) - expected).abs() < 1e-15);
         }
         assert!(depth_camera.check().is_ok());
+    }
+
+    /// Along a depth camera's optical axis (+z) its depth σ(z) is the
+    /// range's; a pixel θ off the axis at range r has depth z = r cos θ and
+    /// range σ(z) / cos θ, which gives the depth z the σ(z) (the range's
+    /// error times cos θ). A beam far off the axis, behind it or not a
+    /// number is refused, with its angle.
+    #[test]
+    fn a_depth_cameras_sigma_is_its_depths_on_every_pixel() {
+        let depth = RangeModel {
+            sigma0: 0.0005,
+            k: 0.001,
+            k2: 0.0036,
+            along: RangeAxis::Depth,
+            ..RangeModel::NOISELESS
+        };
+        let ray = RangeModel {
+            along: RangeAxis::Ray,
+            ..depth
+        };
+        let axis = Vector3::z();
+        assert_eq!(depth.sigma(&axis, 1.2), ray.sigma(&axis, 1.2));
+        let z = 1.5;
+        let depth_sigma = 0.0005 + 0.001 * z + 0.0036 * z * z;
+        for theta in [0.1f64, 0.5, 0.8] {
+            let d = Vector3::new(theta.sin() * 0.6, theta.sin() * 0.8, theta.cos());
+            let r = z / theta.cos();
+            let along_the_depth = depth.sigma(&d, r) * theta.cos();
+            assert!((along_the_depth - depth_sigma).abs() < 1e-15, "{theta}");
+            assert!(
+                ray.sigma(&d, r) * theta.cos() > depth_sigma + 1e-5,
+                "{theta}"
+            );
+        }
+        let pinhole = [axis, Vector3::new(0.6, 0.0, 0.8)];
+        assert!(depth.check_directions(&pinhole, "scan 3").is_ok());
+        for (bad, angle) in [
+            (Vector3::new(1.0, 0.0, 0.05), "87.1 deg"),
+            (Vector3::new(0.0, 0.0, -1.0), "180.0 deg"),
+            (Vector3::new(f64::NAN, 0.0, 1.0), "NaN deg"),
+        ] {
+            let message = depth.check_directions(&[axis, bad], "scan 3").unwrap_err();
+            assert!(message.starts_with("scan 3: beam 1 points"), "{message}");
+            assert!(message.contains(angle), "{message}");
+            assert!(ray.check_directions(&[axis, bad], "scan 3").is_ok());
+        }
+    }
+
+    /// A profile names the depth axis as `along = "depth"`; the default
+    /// (the ray) is left out of what sigmap writes, so files without it
+    /// read and write as before.
+    #[test]
+    fn the_axis_reads_from_and_writes_to_a_profiles_range_table() {
+        let read = |text: &str| toml::from_str::<RangeModel>(text);
+        let depth = read("sigma0 = 0.001\nalong = \"depth\"").unwrap();
+        assert_eq!(depth.along, RangeAxis::Depth);
+        assert!(toml::to_string(&depth)
+            .unwrap()
+            .contains("along = \"depth\""));
+        let ray = read("sigma0 = 0.001").unwrap();
+        assert_eq!(ray.along, RangeAxis::Ray);
+        assert!(!toml::to_string(&ray).unwrap().contains("along"));
+        let message = read("sigma0 = 0.001\nalong = \"optical\"").unwrap_err();
+        assert!(message.to_string().contains("ray"), "{message}");
     }
 }

@@ -155,7 +155,8 @@ fn pooling_narrows_most_hits_and_only_when_asked() {
             .collect()
     };
     let range = experiment.profile().range;
-    let sigma = |r: f64| range.sigma(r);
+    // The quickstart's laser: σ(r) along every beam alike.
+    let sigma = |r: f64| range.sigma(&Vector3::z(), r);
     let raw = along(&experiment);
     assert!(raw.iter().all(|(r, s)| (s - sigma(*r)).abs() < 1e-12));
     experiment.map_mut().pool_every_method(Pooling::Windows);

@@ -37,7 +37,7 @@ fn normalised_errors(tilt: f64, sigma: f64, trials: usize) -> Vec<f64> {
                     Some(r + sigma * z)
                 })
                 .collect();
-            let pooled = pool_ranges(Pooling::Windows, 3, &directions, &ranges, |_| sigma, 0.0);
+            let pooled = pool_ranges(Pooling::Windows, 3, &directions, &ranges, |_, _| sigma, 0.0);
             let p = pooled[4].unwrap();
             (p.range - truth[4]) / p.sigma
         })
@@ -91,7 +91,7 @@ fn a_beam_across_an_edge_keeps_its_own_range() {
         let ranges: Vec<Option<f64>> = (0..9)
             .map(|k| Some(if k % 3 == 0 { 0.5 - near } else { 0.5 }))
             .collect();
-        let pooled = pool_ranges(Pooling::Windows, 3, &directions, &ranges, |_| 0.002, 0.0);
+        let pooled = pool_ranges(Pooling::Windows, 3, &directions, &ranges, |_, _| 0.002, 0.0);
         for (k, p) in pooled.iter().enumerate() {
             let r = p.unwrap().range;
             let own = ranges[k].unwrap();
@@ -142,7 +142,7 @@ fn pooled_point_nees(tilt: f64, sigma: f64, angular_sigma: f64, lateral_only: bo
             3,
             &directions,
             &ranges,
-            |_| sigma,
+            |_, _| sigma,
             angular_sigma,
         )
         .remove(4);
@@ -224,7 +224,7 @@ fn pool_raster(
     ranges: &[Option<f64>],
     sigma: f64,
 ) -> Vec<Pooled> {
-    pool_ranges(Pooling::Windows, n, directions, ranges, |_| sigma, 0.0)
+    pool_ranges(Pooling::Windows, n, directions, ranges, |_, _| sigma, 0.0)
 }
 
 /// An `n`×`n` raster ([`raster`]) on a plane tilted by 34° (0.6 rad) about
@@ -435,7 +435,7 @@ fn faces_only_keeps_a_face_and_drops_the_windows() {
     for (n, face) in [(9, false), (31, true)] {
         let (directions, truth) = tilted_face(n);
         let ranges = noisy(&truth, sigma, &mut rng);
-        let pool = |mode| pool_ranges(mode, n, &directions, &ranges, |_| sigma, 0.0);
+        let pool = |mode| pool_ranges(mode, n, &directions, &ranges, |_, _| sigma, 0.0);
         let (windows, faces) = (pool(Pooling::Windows), pool(Pooling::Faces));
         let mut on_face = 0;
         for k in 0..n * n {

@@ -11,7 +11,7 @@
 //! it says nothing about the free side (`F`), which stays the beams'.
 
 use super::{BoxSummary, LocalGrid};
-use crate::geometry::Vector3;
+use crate::geometry::{Matrix3, Vector3};
 use crate::mapping::chord::{Beam, TAIL};
 use crate::mapping::pooling::hits_on_one_plane;
 use crate::mapping::settings::SampleGate;
@@ -45,7 +45,7 @@ impl LocalGrid {
         a: usize,
         e: usize,
         gate: &SampleGate,
-        range: &RangeModel,
+        (range, camera_from_grid): (&RangeModel, &Matrix3),
     ) -> bool {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
         if a == 0 || e == 0 || a + 1 >= na || e + 1 >= ne {
@@ -56,7 +56,9 @@ impl LocalGrid {
             let Some(beam) = self.single_hit(a + i / 3 - 1, e + i % 3 - 1) else {
                 return false;
             };
-            let (sigma, lateral) = gate.noise(beam.range, beam.sigma, range);
+            let sensor_sigma = || range.sigma(&(camera_from_grid * beam.direction), beam.range);
+            let (sigma, lateral) =
+                gate.noise(beam.range, beam.sigma, sensor_sigma, range.angular_sigma);
             *slot = (beam.direction, beam.range, sigma, lateral);
         }
         hits_on_one_plane(&hits)
@@ -68,10 +70,11 @@ impl LocalGrid {
     /// that the merge's shortcuts stay exact. A point on an edge between two
     /// blocks is taken once: by the block whose lower edge it is, or by the
     /// other when that block is not sampled. `range` is the sensor's noise
-    /// model. Call it once per grid.
-    pub fn add_surface_samples(&mut self, gate: &SampleGate, range: &RangeModel) {
+    /// model, `camera_from_grid` the grid's rotation into the sensor's frame.
+    /// Call it once per grid.
+    pub fn add_surface_samples(&mut self, gate: &SampleGate, sensor: (&RangeModel, &Matrix3)) {
         let (na, ne) = (self.azimuth.count, self.elevation.count);
-        let window = |a: usize, e: usize| self.window_on_one_plane(a, e, gate, range);
+        let window = |a: usize, e: usize| self.window_on_one_plane(a, e, gate, sensor);
         // Each block holds one bin of even indices: its window first, since
         // a window on one plane settles the four blocks around its bin.
         let mut even = Vec::new();

@@ -584,7 +584,10 @@ fn merge_equals_the_cell_model_with_surface_samples() {
     };
     let plain = plane_grid_with(origin, &h, &v, FLOOR, Some(7), mixed);
     let mut grid = plain.clone();
-    grid.add_surface_samples(&SampleGate::default(), &RangeModel::NOISELESS);
+    grid.add_surface_samples(
+        &SampleGate::default(),
+        (&RangeModel::NOISELESS, &Matrix3::identity()),
+    );
     assert!(grid.samples().0.len() > 500, "{}", grid.samples().0.len());
     let options = MergeOptions::default();
     let (mut tree, mut without) = (Octree::new(0.01), Octree::new(0.01));

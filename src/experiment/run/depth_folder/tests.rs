@@ -50,7 +50,9 @@ fn write_folder(experiment: &Experiment, dir: &Path, noise: Option<&RangeModel>)
                 let direction = scene_from_sensor * ray.normalize();
                 let origin = scene_from_sensor * Point3::origin();
                 let mut error = |t: f64| {
-                    noise.map_or(0.0, |n| n.sigma(t) * rng.sample::<f64, _>(StandardNormal))
+                    noise.map_or(0.0, |n| {
+                        n.sigma(&ray.normalize(), t) * rng.sample::<f64, _>(StandardNormal)
+                    })
                 };
                 experiment
                     .scene()

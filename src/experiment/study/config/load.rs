@@ -8,6 +8,7 @@ use crate::mapping::pooling::Pooling;
 use crate::mapping::settings::{OpdfDefaults, SampleGate};
 use crate::mapping::Method;
 use crate::sim::robot::KinematicChain;
+use crate::uncertainty::RangeAxis;
 
 /// A sweep cell's values, by the file they change (experiment, profile,
 /// scene), and its pose-error scale.
@@ -329,6 +330,22 @@ fn with_mappers(
     Ok(methods)
 }
 
+/// Refuses a depth camera's error (`[range] along = "depth"`) on a sensor
+/// that is not one, or on beams too far off its optical axis.
+fn check_range_axis(profile: &ErrorProfile, scanner: &Scanner) -> std::result::Result<(), String> {
+    if profile.range.along == RangeAxis::Depth && scanner.camera.is_none() {
+        return Err(format!(
+            "the profile {} gives a depth camera's error ([range] along = \"depth\") and [sensor] \
+             is a laser scanner's raster: give [sensor] model = \"pinhole\", or a profile whose \
+             range error is along the ray",
+            profile.source.display()
+        ));
+    }
+    profile
+        .range
+        .check_directions(scanner.directions(), "[sensor]")
+}
+
 /// The file's scanner, checked against the viewpoints' beam budget, the
 /// sample budget and (for methods that build grids) the clearing bound at
 /// `resolution`.
@@ -396,6 +413,7 @@ impl Experiment {
             )));
         }
         let scanner = file.sensor.build().map_err(&bad)?;
+        check_range_axis(&profile, &scanner).map_err(&bad)?;
         let (map, samples_over_budget) =
             map_settings(&file, overrides, scanner.directions().len()).map_err(&bad)?;
         let sigma_set = match &file.unscented {

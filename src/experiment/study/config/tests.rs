@@ -410,3 +410,53 @@ fn an_experiment_file_with_a_seed_range_and_a_reference_loads() {
         "{error}"
     );
 }
+
+/// A depth camera's error (`[range] along = "depth"`) is refused on a laser
+/// scanner's raster and on a pinhole whose beams reach more than 85° off
+/// its axis, naming the experiment file; the depth camera experiment takes it.
+#[test]
+fn a_depth_cameras_error_needs_a_depth_camera() {
+    let shipped = |name: &str| {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("experiments")
+            .join(name)
+    };
+    let along = |axis: &str| {
+        (
+            "profile.range.along".to_string(),
+            SweepValue::Text(axis.into()),
+        )
+    };
+    let camera = Experiment::load_cell(&shipped("depth_camera.toml"), &[along("depth")]).unwrap();
+    assert_eq!(
+        camera.profile.range.along,
+        crate::uncertainty::RangeAxis::Depth
+    );
+    let error = |name: &str, cell: &[(String, SweepValue)]| match Experiment::load_cell(
+        &shipped(name),
+        cell,
+    ) {
+        Ok(_) => panic!("{name} loads with {cell:?}"),
+        Err(e) => e.to_string(),
+    };
+    let profile = (
+        "experiment.error_profile".to_string(),
+        SweepValue::Text("profiles/depth_camera.toml".into()),
+    );
+    let laser = error("quickstart.toml", &[profile]);
+    assert!(laser.contains("quickstart.toml"), "{laser}");
+    assert!(
+        laser.contains("along = \"depth\") and [sensor] is a laser scanner's raster"),
+        "{laser}"
+    );
+    let wide = [
+        along("depth"),
+        (
+            "experiment.sensor.horizontal_fov_deg".to_string(),
+            SweepValue::Number(175.0),
+        ),
+    ];
+    let message = error("depth_camera.toml", &wide);
+    assert!(message.contains("deg off the optical axis"), "{message}");
+    assert!(Experiment::load_cell(&shipped("depth_camera.toml"), &[along("ray")]).is_ok());
+}

@@ -57,7 +57,10 @@ fn every_block_of_a_plane_is_sampled_once_on_the_plane() {
     let (na, ne) = (12, 9);
     let n = plane_normal();
     let mut grid = grid_of(na, ne, 0.001, |d| 0.5 / n.dot(d));
-    grid.add_surface_samples(&SampleGate::default(), &RangeModel::NOISELESS);
+    grid.add_surface_samples(
+        &SampleGate::default(),
+        (&RangeModel::NOISELESS, &Matrix3::identity()),
+    );
     let (samples, inverse) = grid.samples();
     // Every block is sampled and every lattice point of the blocks taken
     // once: the whole lattice of STEPS per spacing but the beams' own.
@@ -91,7 +94,10 @@ fn no_sample_bridges_a_step_between_two_surfaces() {
     // step fail the windows' test, so no sample lies between the two.
     let sigma = 0.001;
     let mut grid = grid_of(16, 9, sigma, |d| if d.y < 0.0 { 0.5 } else { 0.6 } / d.x);
-    grid.add_surface_samples(&SampleGate::default(), &RangeModel::NOISELESS);
+    grid.add_surface_samples(
+        &SampleGate::default(),
+        (&RangeModel::NOISELESS, &Matrix3::identity()),
+    );
     let (samples, _) = grid.samples();
     let depth = |s: &Beam| s.direction.x * s.range;
     assert!(samples.iter().any(|s| (depth(s) - 0.5).abs() < 1e-4));
@@ -109,7 +115,10 @@ fn samples_widen_the_bins_band_summaries() {
     // lie inside its bin's [near, far].
     let n = plane_normal();
     let mut grid = grid_of(10, 8, 0.004, |d| 0.5 / n.dot(d));
-    grid.add_surface_samples(&SampleGate::default(), &RangeModel::NOISELESS);
+    grid.add_surface_samples(
+        &SampleGate::default(),
+        (&RangeModel::NOISELESS, &Matrix3::identity()),
+    );
     let (samples, _) = grid.samples();
     assert!(!samples.is_empty());
     for s in samples {
