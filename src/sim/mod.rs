@@ -13,6 +13,7 @@
 //! parry's own vector and pose types stay inside this module; the rest of
 //! sigmap speaks nalgebra.
 
+pub mod believed;
 pub mod ik;
 pub mod mesh;
 pub mod profile;

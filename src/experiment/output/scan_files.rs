@@ -113,7 +113,13 @@ struct ScanManifest<'a> {
     columns: usize,
     min_range: f64,
     max_range: f64,
+    /// The range model the maps are calibrated with (the profile's, as
+    /// `[believed]` scales it).
     range: &'a crate::uncertainty::RangeModel,
+    /// What the maps are told of the profile's errors, when not what the
+    /// simulator draws.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    believed: Option<crate::sim::believed::BelievedErrors>,
     /// A depth camera's intrinsics (px): pixel (column, row) looks along
     /// `((column − cx) / fx, (row − cy) / fy, 1)`; `scale`, the raw depth of
     /// a metre in its exported images.
@@ -138,7 +144,8 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
         columns: scanner.columns,
         min_range: scanner.min_range,
         max_range: scanner.max_range,
-        range: &experiment.profile().range,
+        range: experiment.mapper_view().range,
+        believed: Some(experiment.believed()).filter(|b| !b.is_calibrated()),
         pinhole: scanner.camera.as_ref(),
     };
     let manifest = format!(

@@ -303,7 +303,7 @@ impl<'a> SeedRun<'a> {
         for ((scan, truth), points) in scans.zip(&self.measured) {
             if let Some(p) = propagator(method, &scan_chain(scan), experiment.sigma_set()) {
                 pairs.extend(errors_against_truth(
-                    &experiment.profile().range,
+                    experiment.mapper_view().range,
                     experiment.scanner().directions(),
                     truth,
                     points,

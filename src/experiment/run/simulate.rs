@@ -82,13 +82,18 @@ pub fn simulate(
             &streams,
             index as u32,
         );
+        // Each scan states its pose errors as the maps are told them.
+        let stated = |pose: UncertainPose| UncertainPose {
+            covariance: pose.covariance * experiment.believed().pose_variance(),
+            ..pose
+        };
         scans.push(Scan {
             viewpoint: index,
             joints: viewpoint.joints.clone(),
             chain: NominalChain {
-                world_from_scene,
-                world_from_robot: arm.believed,
-                robot_from_camera,
+                world_from_scene: stated(world_from_scene),
+                world_from_robot: stated(arm.believed),
+                robot_from_camera: stated(robot_from_camera),
             },
             measurements,
         });

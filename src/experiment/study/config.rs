@@ -6,12 +6,14 @@ use crate::experiment::study::run_method::RunMethod;
 use crate::geometry::{Isometry3, Pose, Vector3};
 use crate::mapping::scan::{check_sample_budget, Layouts, MapperView};
 use crate::mapping::settings::MapSettings;
+use crate::sim::believed::BelievedErrors;
 use crate::sim::ik::{self, IkFailure, IkOptions, IkTarget};
 use crate::sim::profile::ErrorProfile;
 use crate::sim::robot::{KinematicChain, Robot};
 use crate::sim::scene::Scene;
 use crate::sim::sensor::Scanner;
 use crate::sim::streams::{Stream, Streams};
+use crate::uncertainty::RangeModel;
 use crate::uncertainty::SigmaSet;
 use file::ViewpointSpec;
 use nalgebra::Unit;
@@ -171,8 +173,14 @@ pub struct Experiment {
     world_from_scene: Pose,
     /// The scanner.
     scanner: Scanner,
-    /// The error profile.
+    /// The error profile: what the simulator draws.
     profile: ErrorProfile,
+    /// What the maps are told of its errors (`[believed]`, docs/math.md
+    /// §6.7).
+    believed: BelievedErrors,
+    /// The range model the maps are calibrated with: the profile's, scaled
+    /// by `believed`.
+    believed_range: RangeModel,
     /// The viewpoints, resolved to joint configurations.
     viewpoints: Vec<Viewpoint>,
     /// The sweep axes (runs are their cartesian product times the seeds).
@@ -225,7 +233,7 @@ impl Experiment {
     pub fn mapper_view(&self) -> MapperView<'_> {
         MapperView {
             layouts: Layouts::Shared(&self.scanner.layout),
-            range: &self.profile.range,
+            range: &self.believed_range,
             max_range: self.scanner.max_range,
             settings: &self.map,
             sigma_set: self.sigma_set,

@@ -129,9 +129,14 @@ impl Experiment {
         &self.scanner
     }
 
-    /// The error profile.
+    /// The error profile: what the simulator draws.
     pub fn profile(&self) -> &ErrorProfile {
         &self.profile
+    }
+
+    /// What the maps are told of the profile's errors (`[believed]`).
+    pub fn believed(&self) -> BelievedErrors {
+        self.believed
     }
 
     /// The viewpoints, resolved to joint configurations.

@@ -31,6 +31,9 @@ pub(super) struct ExperimentFile {
     /// `[map]`: each setting may be swept as `experiment.map.<name>` once set.
     #[serde(default)]
     pub(super) map: MapProbabilities,
+    /// `[believed]`: what the maps are told of the profile's errors.
+    #[serde(default)]
+    pub(super) believed: crate::sim::believed::BelievedErrors,
     /// `[unscented]`: the scaled sigma-point set instead of the paper's.
     pub(super) unscented: Option<ScaledSetSpec>,
     pub(super) seeds: Option<SeedsSpec>,

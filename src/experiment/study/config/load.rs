@@ -414,6 +414,7 @@ impl Experiment {
         }
         let scanner = file.sensor.build().map_err(&bad)?;
         check_range_axis(&profile, &scanner).map_err(&bad)?;
+        file.believed.check(&profile).map_err(&bad)?;
         let (map, samples_over_budget) =
             map_settings(&file, overrides, scanner.directions().len()).map_err(&bad)?;
         let sigma_set = match &file.unscented {
@@ -465,6 +466,8 @@ impl Experiment {
             world_from_base: mount.world_from_base,
             world_from_scene: mount.world_from_scene,
             scanner,
+            believed_range: file.believed.range(&profile.range),
+            believed: file.believed,
             profile,
             viewpoints: Vec::new(),
             sweep: file.sweeps,
