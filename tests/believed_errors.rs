@@ -200,3 +200,38 @@ fn scan_files_state_the_believed_errors() {
         assert!((b - 4.0 * a).abs() <= 1e-12 * a.abs(), "{b} against {a}");
     }
 }
+
+/// The results folder's README and report say what the maps were told:
+/// the profile's errors, the `[believed]` factors, or that a sweep axis
+/// sets them per cell.
+#[test]
+fn the_results_say_what_the_maps_were_told() {
+    use sigmap::experiment::output::{folder_readme::folder_readme, told_errors};
+    let dir = tempfile::tempdir().unwrap();
+    let shipped =
+        |name: &str| Experiment::load(&common::root().join("experiments").join(name)).unwrap();
+    let told_half = quickstart(dir.path(), "believed = { pose_sigma = 0.5 }");
+    let cases = [
+        (
+            shipped("quickstart.toml"),
+            "the profile's, as the simulator draws them",
+        ),
+        (told_half, "pose σ × 0.5, range σ × 1 of the profile's"),
+        (
+            shipped("believed_errors.toml"),
+            "; a sweep axis sets them per cell",
+        ),
+    ];
+    for (experiment, says) in cases {
+        assert!(
+            told_errors(&experiment).contains(says),
+            "{}",
+            told_errors(&experiment)
+        );
+        assert!(
+            folder_readme(&experiment).contains(says),
+            "{}",
+            experiment.name()
+        );
+    }
+}

@@ -35,14 +35,16 @@ pub fn folder_readme(experiment: &Experiment) -> String {
     let _ = writeln!(
         text,
         "{TITLE}{}`\n\n{}\n\nWritten by `sigmap run {}` (sigmap {}): {}, methods {}, \
-         paired against `{}`. Rerunning resumes; `--fresh` recomputes.\n",
+         paired against `{}`; the errors the maps are told: {}. Rerunning resumes; `--fresh` \
+         recomputes.\n",
         experiment.name(),
         experiment.description(),
         experiment.source().display(),
         env!("CARGO_PKG_VERSION"),
         super::count(experiment.seeds().len(), "seed"),
         methods.join(", "),
-        experiment.reference()
+        experiment.reference(),
+        super::told_errors(experiment)
     );
     text.push_str(FILES);
     text.push_str("\n## runs.csv columns\n\n| column | meaning | better |\n|---|---|---|\n");

@@ -17,6 +17,32 @@ pub fn count(n: usize, noun: &str) -> String {
     }
 }
 
+/// What the maps are told of the profile's errors, for people: the
+/// `[believed]` factors (docs/math.md §6.7), and whether a sweep axis
+/// changes them from cell to cell.
+pub fn told_errors(experiment: &super::Experiment) -> String {
+    let believed = experiment.believed();
+    let swept = experiment
+        .cells()
+        .iter()
+        .flatten()
+        .any(|(field, _)| field.starts_with("experiment.believed."));
+    let base = if believed.is_calibrated() {
+        "the profile's, as the simulator draws them".to_string()
+    } else {
+        format!(
+            "pose σ × {}, range σ × {} of the profile's, which the simulator draws \
+             ([believed], docs/math.md §6.7)",
+            believed.pose_sigma, believed.sensor_sigma
+        )
+    };
+    if swept {
+        format!("{base}; a sweep axis sets them per cell (the cell's label)")
+    } else {
+        base
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

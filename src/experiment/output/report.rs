@@ -141,6 +141,7 @@ pub fn render(
         ("sweep cells", experiment.cells().len().to_string()),
         ("uncertainty-aware maps", opdf),
         ("ray update", rays),
+        ("errors the maps are told", super::told_errors(experiment)),
     ] {
         let _ = writeln!(html, "<dt>{term}</dt><dd>{}</dd>", escape(&value));
     }
