@@ -11,6 +11,7 @@ use crate::experiment::study::journal::Inputs;
 use crate::experiment::study::summary::{PairedRow, SummaryRow, Verdict};
 use crate::experiment::Experiment;
 use crate::files::write_file;
+use crate::uncertainty::consistency::anees_bounds;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -157,6 +158,7 @@ pub fn render(
     }
     html.push_str("</table>\n</details>\n");
     headline(&mut html, experiment, &study.summary, &study.paired);
+    consistency(&mut html, &study.summary);
     html.push_str("<h2>Charts</h2>\n");
     let mut per_metric = String::new();
     for chart in charts {
@@ -336,6 +338,57 @@ fn paired_table(html: &mut String, experiment: &Experiment, cell: &str, paired: 
 
 /// A cell label (`field=value;field=value`) as the page writes it, with room
 /// to wrap after each `;`.
+/// The per-point consistency check of each method that propagates, cell
+/// by cell: the mean over the seeds of one point's NEES a run
+/// (`nees_point`, independent across seeds) against the 95% band honest
+/// covariances give that mean, `[χ²₃ₙ(0.025)/n, χ²₃ₙ(0.975)/n]` for n
+/// seeds (docs/math.md §6.2, §6.6).
+fn consistency(html: &mut String, summary: &[SummaryRow]) {
+    let rows: Vec<&SummaryRow> = summary
+        .iter()
+        .filter(|r| r.metric == "nees_point" && r.n > 0 && r.mean.is_finite())
+        .collect();
+    if rows.is_empty() {
+        return;
+    }
+    html.push_str(
+        "<h2>Consistency</h2>\n<p>The points of a run share their views' pose errors, so a \
+         run's ANEES has no χ² band (docs/math.md §6.6). One point a run does: its NEES is \
+         independent from seed to seed, and with honest covariances its mean over n seeds \
+         falls in the band below 95% of the time. Above it the method's covariances are too \
+         small (over-confident), below it too large.</p>\n<table>\n<tr><th>cell</th>\
+         <th>method</th><th>seeds</th><th>mean NEES of one point a run</th>\
+         <th>95% band if honest</th><th>verdict</th></tr>\n",
+    );
+    for row in rows {
+        let band = anees_bounds(row.n, 3, 0.95);
+        let _ = writeln!(
+            html,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td><td>[{:.2}, {:.2}]</td>\
+             <td>{}</td></tr>",
+            escape(&readable_cell(&row.cell)),
+            escape(&row.method),
+            row.n,
+            row.mean,
+            band.0,
+            band.1,
+            nees_verdict(row.mean, band)
+        );
+    }
+    html.push_str("</table>\n");
+}
+
+/// Where a mean NEES lies against the band honest covariances give it.
+fn nees_verdict(mean: f64, (low, high): (f64, f64)) -> &'static str {
+    if mean > high {
+        "over-confident"
+    } else if mean < low {
+        "conservative"
+    } else {
+        "consistent"
+    }
+}
+
 fn readable_cell(cell: &str) -> String {
     cell.replace(';', "; ")
 }
@@ -406,6 +459,54 @@ pub fn write_report(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each propagating method's mean `nees_point` is judged against the
+    /// χ² band of its seeds (40 seeds: [2.29, 3.81]); a method that
+    /// propagates none has no row.
+    #[test]
+    fn the_consistency_table_judges_each_mean_nees_against_its_band() {
+        let row = |cell: &str, method: &str, n: usize, mean: f64| SummaryRow {
+            cell: cell.into(),
+            method: method.into(),
+            metric: "nees_point".into(),
+            n,
+            mean,
+            ci95_low: f64::NAN,
+            ci95_high: f64::NAN,
+        };
+        let summary = [
+            row("a=1", "unscented", 40, 2.52),
+            row("a=0.5", "unscented", 40, 7.46),
+            row("a=2", "unscented", 40, 0.77),
+            row("a=1", "ray_update", 0, f64::NAN),
+        ];
+        let mut html = String::new();
+        consistency(&mut html, &summary);
+        let band = anees_bounds(40, 3, 0.95);
+        assert!(
+            (band.0 - 2.289).abs() < 1e-3 && (band.1 - 3.805).abs() < 1e-3,
+            "{band:?}"
+        );
+        for (cell, verdict) in [
+            ("a=1", "consistent"),
+            ("a=0.5", "over-confident"),
+            ("a=2", "conservative"),
+        ] {
+            let line = html
+                .lines()
+                .find(|l| l.starts_with(&format!("<tr><td>{cell}</td>")))
+                .unwrap_or_else(|| panic!("no row for {cell}: {html}"));
+            assert!(
+                line.contains("[2.29, 3.81]")
+                    && line.ends_with(&format!("<td>{verdict}</td></tr>")),
+                "{line}"
+            );
+        }
+        assert!(!html.contains("ray_update"));
+        let mut none = String::new();
+        consistency(&mut none, &summary[3..]);
+        assert!(none.is_empty());
+    }
 
     #[test]
     fn map_settings_name_the_sweeps_that_vary_them() {
