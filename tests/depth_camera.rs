@@ -89,7 +89,7 @@ fn a_depth_camera_run_maps_the_workcell() {
 #[test]
 fn a_mapper_of_depth_images_joins_the_sweep() {
     let dir = tempfile::tempdir().unwrap();
-    let profile = common::root().join("experiments/profiles/collaborative_poses.toml");
+    let profile = common::root().join("experiments/profiles/depth_camera_poses.toml");
     let mapper = format!(
         r#"
 [[mapper]]

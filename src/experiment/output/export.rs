@@ -202,8 +202,9 @@ fn depth_readme(camera: &DepthCamera, resolution: f64) -> String {
          \x20              sigmap map --scans . --trajectory poses.txt \\\n\
          \x20                --intrinsics {fx:?},{fy:?},{cx:?},{cy:?}{scale} \\\n\
          \x20                --resolution {resolution} --profile PROFILE.toml --out map.ot\n\
-         \x20            (a profile with the arm's error on the pose, not on the joints:\n\
-         \x20            experiments/profiles/collaborative_poses.toml, docs/math.md §5.6).\n",
+         \x20            (a profile with the arm's error on the pose, not on the joints,\n\
+         \x20            and the camera's error of its depth: experiments/profiles/\n\
+         \x20            depth_camera_poses.toml, docs/math.md §5.6).\n",
         scale_value = camera.scale,
         fx = camera.fx,
         fy = camera.fy,
