@@ -126,12 +126,12 @@ fn check_method(view: &MapperView, scans: &[Scan], method: Method, resolution: f
         Layouts::PerScan(layouts) => &layouts[..scans.len().min(layouts.len())],
     };
     for (i, layout) in layouts.iter().enumerate() {
-        let beams = match view.layouts {
-            Layouts::Shared(_) => format!("method {method}, the sensor's beams"),
-            Layouts::PerScan(_) => format!("method {method}, scan {i}"),
-        };
         view.range
-            .check_directions(&layout.directions, &beams)
+            .check_directions(&layout.directions)
+            .map_err(|e| match view.layouts {
+                Layouts::Shared(_) => format!("method {method}, the sensor's beams: {e}"),
+                Layouts::PerScan(_) => format!("method {method}, scan {i}: {e}"),
+            })
             .map_err(Error::Usage)?;
         match layout.half_angles {
             Some(half_angles) => check_clearing(half_angles, view.max_range, resolution)

@@ -123,8 +123,8 @@ impl RangeModel {
 
     /// Refuses beams a depth camera's error says nothing about: with
     /// [`RangeAxis::Depth`], a sensor-frame direction more than 85° off the
-    /// optical axis (+z) or behind it. `what` names the beams' source.
-    pub fn check_directions(&self, directions: &[Vector3], what: &str) -> Result<(), String> {
+    /// optical axis (+z) or behind it; the caller names the beams' source.
+    pub fn check_directions(&self, directions: &[Vector3]) -> Result<(), String> {
         if self.along == RangeAxis::Ray {
             return Ok(());
         }
@@ -133,7 +133,7 @@ impl RangeModel {
             cos.is_nan() || cos < MIN_DEPTH_COSINE
         }) {
             Some(i) => Err(format!(
-                "{what}: beam {i} points {:.1} deg off the optical axis (+z), and [range] along = \
+                "beam {i} points {:.1} deg off the optical axis (+z), and [range] along = \
                  \"depth\" (a depth camera's error) holds for beams within 85 deg of it; map it \
                  with a profile whose range error is along the ray",
                 (directions[i].z / directions[i].norm())
@@ -250,16 +250,16 @@ mod tests {
             );
         }
         let pinhole = [axis, Vector3::new(0.6, 0.0, 0.8)];
-        assert!(depth.check_directions(&pinhole, "scan 3").is_ok());
+        assert!(depth.check_directions(&pinhole).is_ok());
         for (bad, angle) in [
             (Vector3::new(1.0, 0.0, 0.05), "87.1 deg"),
             (Vector3::new(0.0, 0.0, -1.0), "180.0 deg"),
             (Vector3::new(f64::NAN, 0.0, 1.0), "NaN deg"),
         ] {
-            let message = depth.check_directions(&[axis, bad], "scan 3").unwrap_err();
-            assert!(message.starts_with("scan 3: beam 1 points"), "{message}");
+            let message = depth.check_directions(&[axis, bad]).unwrap_err();
+            assert!(message.starts_with("beam 1 points"), "{message}");
             assert!(message.contains(angle), "{message}");
-            assert!(ray.check_directions(&[axis, bad], "scan 3").is_ok());
+            assert!(ray.check_directions(&[axis, bad]).is_ok());
         }
     }
 

@@ -343,7 +343,8 @@ fn check_range_axis(profile: &ErrorProfile, scanner: &Scanner) -> std::result::R
     }
     profile
         .range
-        .check_directions(scanner.directions(), "[sensor]")
+        .check_directions(scanner.directions())
+        .map_err(|e| format!("[sensor]: {e}"))
 }
 
 /// The file's scanner, checked against the viewpoints' beam budget, the
