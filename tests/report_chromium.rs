@@ -126,12 +126,13 @@ fn the_report_renders_in_headless_chromium() {
     );
 
     // The screenshot: not blank, and the slice's colours are on it (the
-    // charts were drawn, not just parsed).
+    // charts were drawn, not just parsed). The window is tall enough to
+    // reach the slice below the headline and consistency tables.
     let shot = dir.path().join("report.png");
     chromium(
         &profile,
         &[
-            "--window-size=1400,2600",
+            "--window-size=1400,3400",
             &format!("--screenshot={}", shot.display()),
             &url,
         ],
