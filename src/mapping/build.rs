@@ -303,7 +303,7 @@ impl<'a> PreparedScan<'a> {
         match m.status {
             BeamStatus::Hit => {
                 let point = match points {
-                    Some(points) => points[k].as_ref().map(|p| surface_point(view.range, d, p)),
+                    Some(points) => points[k].as_ref().map(|p| surface_point(&view.range, d, p)),
                     None => raw_point(view, m, d),
                 }?;
                 let g = self.propagator.propagate(&point);
@@ -352,7 +352,7 @@ impl<'a> PreparedScan<'a> {
         if view.settings.interpolate_beams {
             local.add_surface_samples(
                 &view.settings.sample_gate,
-                (view.range, &grid.camera_from_grid),
+                (&view.range, &grid.camera_from_grid),
             );
         }
         local

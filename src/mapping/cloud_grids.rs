@@ -51,6 +51,23 @@ impl CloudGrid {
     }
 }
 
+/// `(azimuth, elevation)` of each of `members` of `points` in the grid
+/// frame `sensor_from_grid` gives.
+fn grid_angles(
+    points: &[Point3],
+    sensor_from_grid: &Matrix3,
+    members: &[usize],
+) -> Vec<(f64, f64)> {
+    let grid_from_sensor = sensor_from_grid.transpose();
+    members
+        .iter()
+        .map(|&i| {
+            let (_, az, el) = spherical(&(grid_from_sensor * points[i].coords));
+            (az, el)
+        })
+        .collect()
+}
+
 /// The angular grids of a cloud of `points` (sensor frame) with their bins
 /// (`step`: the bin width, else each grid's median spacing), each point in
 /// the bin of its direction. Fails, before allocating them, when the bins
@@ -58,13 +75,7 @@ impl CloudGrid {
 pub fn cloud_grids(points: &[Point3], step: Option<f64>) -> Result<Vec<BeamGrid>, String> {
     let mut grids = Vec::new();
     for (sensor_from_grid, members) in grid_frames(points) {
-        let angles: Vec<(f64, f64)> = members
-            .iter()
-            .map(|&i| {
-                let (_, az, el) = spherical(&(sensor_from_grid.transpose() * points[i].coords));
-                (az, el)
-            })
-            .collect();
+        let angles = grid_angles(points, &sensor_from_grid, &members);
         let Some((azimuth, elevation)) = bin_axes(&angles, step)? else {
             continue;
         };

@@ -141,7 +141,7 @@ pub fn hit_point(range: &RangeModel, d: &Vector3, p: &PooledRange) -> UncertainP
 
 /// A hit's measured point from its raw range (see [`measured_ranges`]).
 pub(crate) fn raw_point(view: &MapperView, m: &Measurement, d: &Vector3) -> Option<UncertainPoint> {
-    hit_range(m).map(|r| camera_point(view.range, d, r, view.range.sigma(d, r)))
+    hit_range(m).map(|r| camera_point(&view.range, d, r, view.range.sigma(d, r)))
 }
 
 /// The camera-frame point at range `r` along `d`, range noise `sigma`.

@@ -244,8 +244,8 @@ impl<'a> Layouts<'a> {
 pub struct MapperView<'a> {
     /// How each scan's beams lie.
     pub layouts: Layouts<'a>,
-    /// The range noise model (σ as a function of range).
-    pub range: &'a RangeModel,
+    /// The range noise model the maps are calibrated with (σ of each beam).
+    pub range: RangeModel,
     /// How far a beam reaches (m): a no-return beam clears space up to it,
     /// and a hit beyond it is taken as one (OctoMap's maximum range).
     pub max_range: f64,

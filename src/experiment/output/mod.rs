@@ -23,10 +23,9 @@ pub fn count(n: usize, noun: &str) -> String {
 pub fn told_errors(experiment: &super::Experiment) -> String {
     let believed = experiment.believed();
     let swept = experiment
-        .cells()
+        .sweep()
         .iter()
-        .flatten()
-        .any(|(field, _)| field.starts_with("experiment.believed."));
+        .any(|axis| axis.field.starts_with("experiment.believed."));
     let base = if believed.is_calibrated() {
         "the profile's, as the simulator draws them".to_string()
     } else {

@@ -115,7 +115,7 @@ struct ScanManifest<'a> {
     max_range: f64,
     /// The range model the maps are calibrated with (the profile's, as
     /// `[believed]` scales it).
-    range: &'a crate::uncertainty::RangeModel,
+    range: crate::uncertainty::RangeModel,
     /// What the maps are told of the profile's errors, when not what the
     /// simulator draws.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -276,7 +276,7 @@ pub fn map_recorded(
     let (scans, layouts) = recorded_scans(nodes, profile, max_range, options.angular_step)?;
     let view = MapperView {
         layouts: Layouts::PerScan(&layouts),
-        range: &profile.range,
+        range: profile.range,
         max_range,
         settings,
         // Recorded scans come with a profile, not an experiment: the

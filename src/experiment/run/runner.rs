@@ -303,7 +303,7 @@ impl<'a> SeedRun<'a> {
         for ((scan, truth), points) in scans.zip(&self.measured) {
             if let Some(p) = propagator(method, &scan_chain(scan), experiment.sigma_set()) {
                 pairs.extend(errors_against_truth(
-                    experiment.mapper_view().range,
+                    &experiment.mapper_view().range,
                     experiment.scanner().directions(),
                     truth,
                     points,
@@ -553,7 +553,7 @@ mod tests {
         let chain = scan_chain(scan);
         let blind = propagator(Method::Blind, &chain, view.sigma_set).unwrap();
         let directions = experiment.scanner().directions();
-        let pairs = errors_against_truth(view.range, directions, truth, &ranges, blind.as_ref());
+        let pairs = errors_against_truth(&view.range, directions, truth, &ranges, blind.as_ref());
         let hits: Vec<_> = ranges
             .iter()
             .zip(directions)

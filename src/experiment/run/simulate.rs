@@ -52,6 +52,8 @@ pub fn simulate(
         covariance: profile.robot_from_camera,
     };
     let mut run_rng = streams.rng(Stream::Run);
+    // What each stated pose covariance is of the drawn one ([believed]).
+    let stated_variance = experiment.believed().pose_variance();
     let true_world_from_scene = draw_pose(&world_from_scene, &mut run_rng).to_isometry();
     let true_robot_from_camera = draw_pose(&robot_from_camera, &mut run_rng).to_isometry();
     let mut scans = Vec::with_capacity(experiment.viewpoints().len());
@@ -84,7 +86,7 @@ pub fn simulate(
         );
         // Each scan states its pose errors as the maps are told them.
         let stated = |pose: UncertainPose| UncertainPose {
-            covariance: pose.covariance * experiment.believed().pose_variance(),
+            covariance: pose.covariance * stated_variance,
             ..pose
         };
         scans.push(Scan {

@@ -13,7 +13,6 @@ use crate::sim::robot::{KinematicChain, Robot};
 use crate::sim::scene::Scene;
 use crate::sim::sensor::Scanner;
 use crate::sim::streams::{Stream, Streams};
-use crate::uncertainty::RangeModel;
 use crate::uncertainty::SigmaSet;
 use file::ViewpointSpec;
 use nalgebra::Unit;
@@ -178,9 +177,6 @@ pub struct Experiment {
     /// What the maps are told of its errors (`[believed]`, docs/math.md
     /// §6.7).
     believed: BelievedErrors,
-    /// The range model the maps are calibrated with: the profile's, scaled
-    /// by `believed`.
-    believed_range: RangeModel,
     /// The viewpoints, resolved to joint configurations.
     viewpoints: Vec<Viewpoint>,
     /// The sweep axes (runs are their cartesian product times the seeds).
@@ -233,7 +229,7 @@ impl Experiment {
     pub fn mapper_view(&self) -> MapperView<'_> {
         MapperView {
             layouts: Layouts::Shared(&self.scanner.layout),
-            range: &self.believed_range,
+            range: self.believed.range(&self.profile.range),
             max_range: self.scanner.max_range,
             settings: &self.map,
             sigma_set: self.sigma_set,

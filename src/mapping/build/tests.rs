@@ -146,7 +146,7 @@ fn pooling_narrows_most_hits_and_only_when_asked() {
             .iter()
             .zip(e.scanner().directions())
             .filter_map(|(p, d)| {
-                let p = surface_point(view.range, d, p.as_ref()?);
+                let p = surface_point(&view.range, d, p.as_ref()?);
                 Some((
                     p.mean.norm(),
                     (d.transpose() * p.covariance * d)[(0, 0)].sqrt(),
@@ -209,7 +209,7 @@ fn maps_draw_pooled_beams_without_the_slide_and_the_nees_keeps_it() {
             "beam {k}: σ {drawn} drawn, {} measured",
             p.sigma
         );
-        let hit = hit_point(view.range, d, p);
+        let hit = hit_point(&view.range, d, p);
         let hit_sigma = (d.transpose() * hit.covariance * d)[(0, 0)].sqrt();
         assert!(hit_sigma >= p.sigma * (1.0 - 1e-12));
         pooled += usize::from(p.normal.is_some());

@@ -34,13 +34,7 @@ fn the_spacing_of_a_raster_is_its_step() {
     assert_eq!(frames.len(), 1, "all in front: one camera grid");
     let (frame, members) = &frames[0];
     assert_eq!(members.len(), points.len());
-    let angles: Vec<(f64, f64)> = members
-        .iter()
-        .map(|&i| {
-            let (_, az, el) = spherical(&(frame.transpose() * points[i].coords));
-            (az, el)
-        })
-        .collect();
+    let angles = grid_angles(&points, frame, members);
     let step = median_spacing(&angles).unwrap();
     assert!(
         (step - 0.5f64.to_radians()).abs() < 1e-9,
@@ -85,8 +79,7 @@ fn a_spinning_lidar_gets_two_half_grids_about_its_axis() {
     for (frame, members) in &frames {
         assert!((frame.determinant() - 1.0).abs() < 1e-12, "a rotation");
         assert_eq!(Vector3::from(frame.column(2)), Vector3::z(), "pole along z");
-        for &i in members {
-            let (_, az, el) = spherical(&(frame.transpose() * points[i].coords));
+        for (az, el) in grid_angles(&points, frame, members) {
             assert!(az.abs() <= std::f64::consts::FRAC_PI_2 + 1e-12);
             assert!(el.abs() <= 15.0f64.to_radians() + 1e-9);
         }

@@ -158,7 +158,7 @@ fn depth_pixels_pool_with_their_neighbours_on_the_image() {
     };
     let view = MapperView {
         layouts: Layouts::PerScan(&layouts),
-        range: &profile.range,
+        range: profile.range,
         max_range: f64::INFINITY,
         settings: &settings,
         sigma_set: SigmaSet::Paper,

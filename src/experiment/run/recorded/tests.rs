@@ -132,7 +132,7 @@ fn pooling_a_cloud_needs_one_point_per_bin() {
         let layout = node_layout(&node, step.map(f64::to_radians)).unwrap();
         let view = MapperView {
             layouts: Layouts::PerScan(std::slice::from_ref(&layout)),
-            range: &experiment.profile().range,
+            range: experiment.profile().range,
             max_range: f64::INFINITY,
             settings: &settings,
             sigma_set: SigmaSet::Paper,

@@ -467,7 +467,6 @@ impl Experiment {
             world_from_base: mount.world_from_base,
             world_from_scene: mount.world_from_scene,
             scanner,
-            believed_range: file.believed.range(&profile.range),
             believed: file.believed,
             profile,
             viewpoints: Vec::new(),
