@@ -26,6 +26,13 @@ fn quickstart(dir: &std::path::Path, believed: &str) -> Experiment {
     Experiment::load(&path).unwrap()
 }
 
+/// `believed = { profile = ".../experiments/profiles/NAME", ... }` with
+/// `extra` keys after the profile.
+fn believed_profile(name: &str, extra: &str) -> String {
+    let path = common::root().join("experiments/profiles").join(name);
+    format!("believed = {{ profile = \"{}\"{extra} }}", path.display())
+}
+
 /// Told twice every σ, a run has the very scans of the calibrated run,
 /// every stated pose covariance four times the drawn one, and every
 /// first-order covariance four times the calibrated run's, so its NEES is a
@@ -176,6 +183,9 @@ fn scan_files_state_the_believed_errors() {
         "believed = { sensor_sigma = 0.5, pose_sigma = 2.0 }",
         "told",
     );
+    let (other, _) = files(&believed_profile("industrial.toml", ""), "other");
+    assert_eq!(other["believed"]["profile"].as_str(), Some("industrial"));
+    assert_eq!(other["range"]["sigma0"].as_float(), Some(0.0001));
     assert!(!calibrated.contains_key("believed"));
     let believed = told["believed"].as_table().expect("a [believed] table");
     assert_eq!(believed["sensor_sigma"].as_float(), Some(0.5));
@@ -211,12 +221,21 @@ fn the_results_say_what_the_maps_were_told() {
     let shipped =
         |name: &str| Experiment::load(&common::root().join("experiments").join(name)).unwrap();
     let told_half = quickstart(dir.path(), "believed = { pose_sigma = 0.5 }");
+    let other_dir = tempfile::tempdir().unwrap();
     let cases = [
         (
             shipped("quickstart.toml"),
             "the profile's, as the simulator draws them",
         ),
         (told_half, "pose σ × 0.5, range σ × 1 of the profile's"),
+        (
+            quickstart(
+                other_dir.path(),
+                &believed_profile("industrial.toml", ", sensor_sigma = 2.0"),
+            ),
+            "pose σ × 1, range σ × 2 of the profile 'industrial''s, while the simulator \
+             draws 'collaborative''s",
+        ),
         (
             shipped("believed_errors.toml"),
             "; a sweep axis sets them per cell",
@@ -234,4 +253,171 @@ fn the_results_say_what_the_maps_were_told() {
             experiment.name()
         );
     }
+}
+
+/// A `[believed] profile` tells the maps another profile's errors on the
+/// very scans: each scan states that profile's pose covariances (here the
+/// industrial arm's fixed pose-space error where the simulator draws the
+/// collaborative arm's joints), at the cell's pose scale and times
+/// `pose_sigma²`, and the maps get its range model. Naming the drawn
+/// profile itself changes no scan and no score.
+#[test]
+fn a_believed_profile_is_told_on_the_same_scans() {
+    use sigmap::experiment::SweepValue;
+    use sigmap::sim::profile::{ArmError, ErrorProfile};
+    let dirs: Vec<_> = (0..3).map(|_| tempfile::tempdir().unwrap()).collect();
+    let calibrated = quickstart(dirs[0].path(), "");
+    let industrial = quickstart(
+        dirs[1].path(),
+        &believed_profile("industrial.toml", ", pose_sigma = 2.0"),
+    );
+    let itself = quickstart(dirs[2].path(), &believed_profile("collaborative.toml", ""));
+    let told =
+        ErrorProfile::load(&common::root().join("experiments/profiles/industrial.toml")).unwrap();
+    let ArmError::Pose(told_arm) = told.arm else {
+        panic!("the industrial arm's error is a pose error")
+    };
+    assert_eq!(industrial.believed_profile().name, "industrial");
+    assert_eq!(industrial.mapper_view().range, told.range);
+    assert_eq!(itself.mapper_view().range, calibrated.mapper_view().range);
+    assert!(
+        itself.believed().is_calibrated(),
+        "the drawn profile named again"
+    );
+
+    let runs: Vec<_> = [&calibrated, &industrial, &itself]
+        .iter()
+        .map(|e| simulate(e, 3, |_| {}).unwrap())
+        .collect();
+    for (v, scan) in runs[0].scans.iter().enumerate() {
+        let (other, same) = (&runs[1].scans[v], &runs[2].scans[v]);
+        let bits = |s: &sigmap::mapping::scan::Scan| {
+            s.measurements
+                .iter()
+                .map(|m| (m.status, m.range.to_bits()))
+                .collect::<Vec<_>>()
+        };
+        assert!(
+            bits(scan) == bits(other) && bits(scan) == bits(same),
+            "viewpoint {v}"
+        );
+        assert_eq!(scan.chain, same.chain, "viewpoint {v}");
+        let stated = [
+            (
+                &scan.chain.world_from_scene,
+                &other.chain.world_from_scene,
+                told.world_from_scene,
+            ),
+            (
+                &scan.chain.world_from_robot,
+                &other.chain.world_from_robot,
+                told_arm,
+            ),
+            (
+                &scan.chain.robot_from_camera,
+                &other.chain.robot_from_camera,
+                told.robot_from_camera,
+            ),
+        ];
+        for (drawn, stated, believed) in stated {
+            assert_eq!(drawn.mean, stated.mean);
+            assert_eq!(stated.covariance, believed * 4.0, "viewpoint {v}");
+        }
+        // The drawn arm error is its joints': a full covariance.
+        assert!(scan.chain.world_from_robot.covariance[(0, 1)].abs() > 0.0);
+    }
+    // The pose scale scales what a calibrated robot believes, too.
+    let path = dirs[1].path().join("quickstart.toml");
+    let scaled = Experiment::load_cell(
+        &path,
+        &[("pose_error_scale".into(), SweepValue::Number(3.0))],
+    )
+    .unwrap();
+    let scan = &simulate(&scaled, 3, |_| {}).unwrap().scans[0];
+    let expected = told_arm * 9.0 * 4.0;
+    assert!((scan.chain.world_from_robot.covariance - expected).amax() <= 1e-15 * expected.amax());
+
+    let (a, b) = (
+        run_seed(&calibrated, 3).unwrap(),
+        run_seed(&itself, 3).unwrap(),
+    );
+    assert_eq!(a.rows.len(), b.rows.len());
+    for (a, b) in a.rows.iter().zip(&b.rows) {
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
+    }
+}
+
+/// A believed profile that is missing, that gives a depth camera's error to
+/// a laser scanner, or whose joint errors do not fit the arm is refused in
+/// one line naming the file; a changed believed profile changes the run's
+/// input fingerprint, so that a resume never reuses results told other
+/// errors.
+#[test]
+fn a_believed_profile_is_checked_and_fingerprinted() {
+    use sigmap::experiment::study::journal::fingerprint;
+    let dir = tempfile::tempdir().unwrap();
+    let profiles = common::root().join("experiments/profiles");
+    let run_refused = |believed: &str, names: &str, says: &str| {
+        let sub = tempfile::tempdir_in(dir.path()).unwrap();
+        let path = portable_experiment(
+            "quickstart",
+            sub.path(),
+            &[("seed = 1", &format!("seed = 1\n{believed}"))],
+        );
+        let out = sub.path().join("out");
+        refused(
+            &[
+                "run",
+                path.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "-q",
+            ],
+            names,
+            says,
+        );
+        assert!(!out.exists());
+    };
+    run_refused(
+        "believed = { profile = \"nowhere.toml\" }",
+        "quickstart.toml",
+        "[believed] profile = \"nowhere.toml\": no such file",
+    );
+    run_refused(
+        &believed_profile("depth_camera.toml", ""),
+        "quickstart.toml",
+        "[believed] profile: the profile",
+    );
+    let five_joints = dir.path().join("five_joints.toml");
+    let text = std::fs::read_to_string(profiles.join("quiet_sensor.toml")).unwrap();
+    let edited = text.replace(
+        "joint_sigma = [0.00052, 0.00052, 0.00052, 0.00052, 0.00052, 0.00052]",
+        "joint_sigma = [0.00052, 0.00052, 0.00052, 0.00052, 0.00052]",
+    );
+    assert_ne!(edited, text);
+    std::fs::write(&five_joints, edited).unwrap();
+    run_refused(
+        &format!("believed = {{ profile = \"{}\" }}", five_joints.display()),
+        "five_joints.toml",
+        "joint_sigma has 5 values, the arm 'ur5' has 6 joints",
+    );
+
+    let told = dir.path().join("told.toml");
+    let industrial = std::fs::read_to_string(profiles.join("industrial.toml")).unwrap();
+    std::fs::write(&told, &industrial).unwrap();
+    let believed = format!("believed = {{ profile = \"{}\" }}", told.display());
+    let sub = tempfile::tempdir_in(dir.path()).unwrap();
+    let print = || {
+        fingerprint(&[quickstart(sub.path(), &believed)])
+            .unwrap()
+            .fingerprint
+    };
+    let before = print();
+    assert_eq!(print(), before);
+    std::fs::write(
+        &told,
+        industrial.replace("sigma0 = 0.0001 ", "sigma0 = 0.0002 "),
+    )
+    .unwrap();
+    assert_ne!(print(), before, "the believed profile is an input");
 }

@@ -1,30 +1,40 @@
 //! What the maps are told of the errors the simulator draws: an
 //! experiment's `[believed]` table (docs/math.md §6.7). The simulator draws
-//! every error from the profile; each scan states its pose errors, and the
-//! maps are calibrated with a range model, each σ of the profile's times a
-//! factor. 1 and 1 (the default) is a calibrated robot; a factor below 1
-//! tells the maps less error than there is (over-confident), above 1 more.
+//! every error from the experiment's profile; each scan states its pose
+//! errors, and the maps are calibrated with a range model, as the believed
+//! profile gives them (the experiment's own unless `profile` names
+//! another), each σ times a factor. No profile, 1 and 1 (the default) is a
+//! calibrated robot; a factor below 1 tells the maps less error than there
+//! is (over-confident), above 1 more; another profile tells them errors of
+//! another structure (e.g. a fixed pose-space arm error where the arm's is
+//! its joints').
 
 use super::profile::ErrorProfile;
 use crate::uncertainty::RangeModel;
 use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
 
-/// The factors of an experiment's `[believed]` table.
-#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
+/// An experiment's `[believed]` table.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct BelievedErrors {
+    /// The error profile the maps are told (relative to the experiment
+    /// file); `None`: the experiment's own, the one the simulator draws.
+    #[serde(skip_serializing)]
+    pub profile: Option<PathBuf>,
     /// The range σ (`σ0`, `k`, `k2`) and the angular σ the maps are
-    /// calibrated with, times the profile's.
+    /// calibrated with, times the believed profile's.
     pub sensor_sigma: f64,
     /// Every pose σ the scans state (the arm's, the hand-eye's and the
-    /// registration's), times the profile's: each stated covariance is the
-    /// drawn one times `pose_sigma²`.
+    /// registration's), times the believed profile's: each stated
+    /// covariance is the believed one times `pose_sigma²`.
     pub pose_sigma: f64,
 }
 
 impl Default for BelievedErrors {
     fn default() -> Self {
         Self {
+            profile: None,
             sensor_sigma: 1.0,
             pose_sigma: 1.0,
         }
@@ -36,7 +46,7 @@ impl Default for BelievedErrors {
 const MAX_FACTOR: f64 = 100.0;
 
 impl BelievedErrors {
-    /// Checks the factors, and the errors they give `profile`'s: the
+    /// Checks the factors, and the errors they give the believed `profile`'s: the
     /// sensor's between 0.01 and 100 (a range σ of zero would make every
     /// map's surface a step), the poses' between 0 (the scans state no pose
     /// error) and 100; the believed errors within the limits a profile's
@@ -111,7 +121,7 @@ mod tests {
         let d = crate::geometry::Vector3::new(0.0, 0.6, 0.8);
         let half = BelievedErrors {
             sensor_sigma: 0.5,
-            pose_sigma: 1.0,
+            ..BelievedErrors::default()
         };
         let believed = half.range(&profile.range);
         for r in [0.2, 1.0, 3.0] {
@@ -125,6 +135,11 @@ mod tests {
             profile.range
         );
         assert!(BelievedErrors::default().is_calibrated() && !half.is_calibrated());
+        let other_profile = BelievedErrors {
+            profile: Some("collaborative_poses.toml".into()),
+            ..BelievedErrors::default()
+        };
+        assert!(!other_profile.is_calibrated());
         assert_eq!(
             BelievedErrors {
                 pose_sigma: 3.0,
@@ -144,6 +159,7 @@ mod tests {
             BelievedErrors {
                 sensor_sigma,
                 pose_sigma,
+                profile: None,
             }
             .check(profile)
         };

@@ -65,44 +65,49 @@ pub fn draw_arm(
 ) -> Result<ArmState, String> {
     let nominal = world_from_base * chain.forward_unchecked(q);
     let mean = Pose::from_isometry(&nominal);
-    match arm {
-        ArmError::Pose(covariance) => {
-            let believed = UncertainPose {
-                mean,
-                covariance: *covariance,
-            };
-            Ok(ArmState {
-                truth: draw_pose(&believed, rng).to_isometry(),
-                believed,
-            })
-        }
-        ArmError::Joints(_) | ArmError::EveryJoint(_) => {
-            let sigmas = arm.joint_sigmas(q.len()).unwrap_or_default();
-            if sigmas.len() != q.len() {
-                return Err(format!(
-                    "joint_sigma has {} values but the arm has {} joints",
-                    sigmas.len(),
-                    q.len()
-                ));
-            }
-            let jac = pose_parameter_jacobian(chain, world_from_base, q)?;
-            let sigma_q = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
-                sigmas.len(),
-                sigmas.iter().map(|s| s * s),
-            ));
-            let full = &jac * sigma_q * jac.transpose();
-            let covariance = Matrix6::from_fn(|i, j| 0.5 * (full[(i, j)] + full[(j, i)]));
+    let covariance = arm_covariance(arm, chain, world_from_base, q)?;
+    let believed = UncertainPose { mean, covariance };
+    let truth = match arm.joint_sigmas(q.len()) {
+        None => draw_pose(&believed, rng).to_isometry(),
+        Some(sigmas) => {
             let true_q: Vec<f64> = q
                 .iter()
                 .zip(sigmas)
                 .map(|(qi, s)| qi + s * rng.sample::<f64, _>(StandardNormal))
                 .collect();
-            Ok(ArmState {
-                believed: UncertainPose { mean, covariance },
-                truth: world_from_base * chain.forward_unchecked(&true_q),
-            })
+            world_from_base * chain.forward_unchecked(&true_q)
         }
+    };
+    Ok(ArmState { believed, truth })
+}
+
+/// Γ_rw of the arm at joints `q`: a pose error as given, a joint error
+/// `J Σ_q Jᵀ` with `J` the [`pose_parameter_jacobian`] (docs/math.md §2.1).
+pub fn arm_covariance(
+    arm: &ArmError,
+    chain: &KinematicChain,
+    world_from_base: &Isometry3,
+    q: &[f64],
+) -> Result<Matrix6, String> {
+    let sigmas = match arm {
+        ArmError::Pose(covariance) => return Ok(*covariance),
+        ArmError::Joints(sigmas) => sigmas.clone(),
+        ArmError::EveryJoint(sigma) => vec![*sigma; q.len()],
+    };
+    if sigmas.len() != q.len() {
+        return Err(format!(
+            "joint_sigma has {} values but the arm has {} joints",
+            sigmas.len(),
+            q.len()
+        ));
     }
+    let jac = pose_parameter_jacobian(chain, world_from_base, q)?;
+    let sigma_q = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
+        sigmas.len(),
+        sigmas.iter().map(|s| s * s),
+    ));
+    let full = &jac * sigma_q * jac.transpose();
+    Ok(Matrix6::from_fn(|i, j| 0.5 * (full[(i, j)] + full[(j, i)])))
 }
 
 /// The parameter error `t_true − t_nominal`, angles wrapped to (−π, π].

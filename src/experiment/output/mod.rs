@@ -26,12 +26,21 @@ pub fn told_errors(experiment: &super::Experiment) -> String {
         .sweep()
         .iter()
         .any(|axis| axis.field.starts_with("experiment.believed."));
+    let whose = match believed.profile {
+        Some(_) => format!(
+            "the profile '{}''s, while the simulator draws '{}''s",
+            experiment.believed_profile().name,
+            experiment.profile().name
+        ),
+        None => "the profile's, which the simulator draws".to_string(),
+    };
     let base = if believed.is_calibrated() {
         "the profile's, as the simulator draws them".to_string()
+    } else if believed.pose_sigma == 1.0 && believed.sensor_sigma == 1.0 {
+        format!("{whose} ([believed], docs/math.md §6.7)")
     } else {
         format!(
-            "pose σ × {}, range σ × {} of the profile's, which the simulator draws \
-             ([believed], docs/math.md §6.7)",
+            "pose σ × {}, range σ × {} of {whose} ([believed], docs/math.md §6.7)",
             believed.pose_sigma, believed.sensor_sigma
         )
     };

@@ -117,14 +117,25 @@ struct ScanManifest<'a> {
     /// `[believed]` scales it).
     range: crate::uncertainty::RangeModel,
     /// What the maps are told of the profile's errors, when not what the
-    /// simulator draws.
+    /// simulator draws: the factors, and the believed profile's name when
+    /// it is another profile.
     #[serde(skip_serializing_if = "Option::is_none")]
-    believed: Option<crate::sim::believed::BelievedErrors>,
+    believed: Option<BelievedTable<'a>>,
     /// A depth camera's intrinsics (px): pixel (column, row) looks along
     /// `((column − cx) / fx, (row − cy) / fy, 1)`; `scale`, the raw depth of
     /// a metre in its exported images.
     #[serde(skip_serializing_if = "Option::is_none")]
     pinhole: Option<&'a DepthCamera>,
+}
+
+/// `scan.toml`'s `[believed]` table.
+#[derive(serde::Serialize)]
+struct BelievedTable<'a> {
+    /// The believed profile's name, when `[believed]` names one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    profile: Option<&'a str>,
+    #[serde(flatten)]
+    factors: &'a crate::sim::believed::BelievedErrors,
 }
 
 /// Writes every file of a simulated run into `dir` (which must exist).
@@ -145,7 +156,15 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
         min_range: scanner.min_range,
         max_range: scanner.max_range,
         range: experiment.mapper_view().range,
-        believed: Some(experiment.believed()).filter(|b| !b.is_calibrated()),
+        believed: Some(experiment.believed())
+            .filter(|b| !b.is_calibrated())
+            .map(|factors| BelievedTable {
+                profile: factors
+                    .profile
+                    .as_ref()
+                    .map(|_| experiment.believed_profile().name.as_str()),
+                factors,
+            }),
         pinhole: scanner.camera.as_ref(),
     };
     let manifest = format!(

@@ -2,11 +2,11 @@
 
 use crate::error::{Error, Result};
 use crate::experiment::Experiment;
-use crate::geometry::Isometry3;
+use crate::geometry::{Isometry3, Matrix6};
 use crate::mapping::scan::{NominalChain, Scan};
 use crate::sim::scan::{cast_beams, ScanTruth};
 use crate::sim::streams::{Stream, Streams};
-use crate::sim::truth::{draw_arm, draw_pose};
+use crate::sim::truth::{arm_covariance, draw_arm, draw_pose};
 use crate::uncertainty::UncertainPose;
 
 /// The truth of a run, for scoring only: the draws of the run and of each
@@ -52,8 +52,12 @@ pub fn simulate(
         covariance: profile.robot_from_camera,
     };
     let mut run_rng = streams.rng(Stream::Run);
-    // What each stated pose covariance is of the drawn one ([believed]).
-    let stated_variance = experiment.believed().pose_variance();
+    // What each scan states of its pose errors: the believed profile's
+    // covariances times the factor's square ([believed]).
+    let told = experiment.believed_profile();
+    let told_variance = experiment.believed().pose_variance();
+    let told_world_from_scene = told.world_from_scene * told_variance;
+    let told_robot_from_camera = told.robot_from_camera * told_variance;
     let true_world_from_scene = draw_pose(&world_from_scene, &mut run_rng).to_isometry();
     let true_robot_from_camera = draw_pose(&robot_from_camera, &mut run_rng).to_isometry();
     let mut scans = Vec::with_capacity(experiment.viewpoints().len());
@@ -74,6 +78,22 @@ pub fn simulate(
                 format!("viewpoint {index} ({}): {e}", viewpoint.request),
             )
         })?;
+        let told_arm = if experiment.believed().profile.is_some() {
+            arm_covariance(
+                &told.arm,
+                experiment.arm(),
+                &experiment.world_from_base(),
+                &viewpoint.joints,
+            )
+            .map_err(|e| {
+                Error::input(
+                    &told.source,
+                    format!("viewpoint {index} ({}): {e}", viewpoint.request),
+                )
+            })?
+        } else {
+            arm.believed.covariance
+        };
         let scene_from_camera =
             true_world_from_scene.inverse() * arm.truth * true_robot_from_camera;
         let (measurements, beams) = cast_beams(
@@ -85,17 +105,17 @@ pub fn simulate(
             index as u32,
         );
         // Each scan states its pose errors as the maps are told them.
-        let stated = |pose: UncertainPose| UncertainPose {
-            covariance: pose.covariance * stated_variance,
-            ..pose
+        let stated = |pose: &UncertainPose, covariance: Matrix6| UncertainPose {
+            mean: pose.mean,
+            covariance,
         };
         scans.push(Scan {
             viewpoint: index,
             joints: viewpoint.joints.clone(),
             chain: NominalChain {
-                world_from_scene: stated(world_from_scene),
-                world_from_robot: stated(arm.believed),
-                robot_from_camera: stated(robot_from_camera),
+                world_from_scene: stated(&world_from_scene, told_world_from_scene),
+                world_from_robot: stated(&arm.believed, told_arm * told_variance),
+                robot_from_camera: stated(&robot_from_camera, told_robot_from_camera),
             },
             measurements,
         });

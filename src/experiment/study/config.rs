@@ -177,6 +177,9 @@ pub struct Experiment {
     /// What the maps are told of its errors (`[believed]`, docs/math.md
     /// §6.7).
     believed: BelievedErrors,
+    /// The profile `[believed]` names, if it names one: the errors the maps
+    /// are told instead of `profile`'s.
+    believed_profile: Option<ErrorProfile>,
     /// The viewpoints, resolved to joint configurations.
     viewpoints: Vec<Viewpoint>,
     /// The sweep axes (runs are their cartesian product times the seeds).
@@ -229,7 +232,7 @@ impl Experiment {
     pub fn mapper_view(&self) -> MapperView<'_> {
         MapperView {
             layouts: Layouts::Shared(&self.scanner.layout),
-            range: self.believed.range(&self.profile.range),
+            range: self.believed.range(&self.believed_profile().range),
             max_range: self.scanner.max_range,
             settings: &self.map,
             sigma_set: self.sigma_set,

@@ -76,6 +76,10 @@ pub fn fingerprint(cells: &[Experiment]) -> Result<Inputs> {
             .chain(cell.scene().inputs.iter().map(PathBuf::as_path))
             .map(Path::to_path_buf)
             .collect();
+        // The profile the maps are told, when `[believed]` names one.
+        if cell.believed().profile.is_some() {
+            paths.push(cell.believed_profile().source.clone());
+        }
         // An external mapper is its program and the scripts it names: a
         // rebuilt one is new input.
         for method in cell.methods() {

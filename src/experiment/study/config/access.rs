@@ -135,8 +135,15 @@ impl Experiment {
     }
 
     /// What the maps are told of the profile's errors (`[believed]`).
-    pub fn believed(&self) -> BelievedErrors {
-        self.believed
+    pub fn believed(&self) -> &BelievedErrors {
+        &self.believed
+    }
+
+    /// The error profile the maps are told, before `[believed]`'s factors:
+    /// the one its `profile` names (at the experiment's pose error scale),
+    /// else the one the simulator draws.
+    pub fn believed_profile(&self) -> &ErrorProfile {
+        self.believed_profile.as_ref().unwrap_or(&self.profile)
     }
 
     /// The viewpoints, resolved to joint configurations.

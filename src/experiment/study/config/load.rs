@@ -60,7 +60,19 @@ impl SweptValues {
     /// The error profile at `path` with the cell's values and pose scale,
     /// its pose errors checked.
     fn profile(&self, path: &Path) -> Result<ErrorProfile> {
-        let mut profile = ErrorProfile::load_with(path, &self.by_file[1])?;
+        self.scaled_profile(ErrorProfile::load_with(path, &self.by_file[1])?)
+    }
+
+    /// The believed profile at `path` (`[believed] profile`): at the cell's
+    /// pose scale, which scales the robot's errors and so what a calibrated
+    /// robot believes of them; the cell's `profile.<path>` values are the
+    /// drawn profile's alone.
+    fn believed_profile(&self, path: &Path) -> Result<ErrorProfile> {
+        self.scaled_profile(ErrorProfile::load_with(path, &[])?)
+    }
+
+    /// `profile` at the cell's pose scale, its pose errors checked.
+    fn scaled_profile(&self, mut profile: ErrorProfile) -> Result<ErrorProfile> {
         if let Some(scale) = self.pose_scale {
             profile.scale_pose_errors(scale);
         }
@@ -196,19 +208,7 @@ impl Mount {
                 mount.flange_link, mount.sensor_link
             )));
         }
-        if let crate::sim::profile::ArmError::Joints(s) = &profile.arm {
-            if s.len() != arm.dof() {
-                return Err(Error::input(
-                    &profile.source,
-                    format!(
-                        "[world_from_robot] joint_sigma has {} values, the arm '{}' has {} joints",
-                        s.len(),
-                        robot.name,
-                        arm.dof()
-                    ),
-                ));
-            }
-        }
+        check_joint_errors(profile, robot, &arm)?;
         let base = Pose::new(mount.xyz, mount.rpy);
         let world_from_scene = Pose::new(file.world_from_scene.xyz, file.world_from_scene.rpy);
         if !base.is_finite() || !world_from_scene.is_finite() {
@@ -223,6 +223,31 @@ impl Mount {
             world_from_base: base.to_isometry(),
             world_from_scene,
         })
+    }
+}
+
+/// Whether `a` and `b` name the same file (by their canonical paths).
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}
+
+/// A joint error per joint of `profile` must match `arm`'s joints; the
+/// error names the profile.
+fn check_joint_errors(profile: &ErrorProfile, robot: &Robot, arm: &KinematicChain) -> Result<()> {
+    match &profile.arm {
+        crate::sim::profile::ArmError::Joints(s) if s.len() != arm.dof() => Err(Error::input(
+            &profile.source,
+            format!(
+                "[world_from_robot] joint_sigma has {} values, the arm '{}' has {} joints",
+                s.len(),
+                robot.name,
+                arm.dof()
+            ),
+        )),
+        _ => Ok(()),
     }
 }
 
@@ -394,7 +419,8 @@ impl Experiment {
         let bad = |msg: String| Error::input(path, msg);
         let scene_path = referred(path, "scene", &file.scene)?;
         let scene = Scene::load_with(&scene_path, &swept.by_file[2])?;
-        let profile = swept.profile(&referred(path, "error_profile", &file.error_profile)?)?;
+        let profile_path = referred(path, "error_profile", &file.error_profile)?;
+        let profile = swept.profile(&profile_path)?;
         check_sweep_axes(&file.sweeps).map_err(&bad)?;
         let robot = Robot::load(&referred(path, "[robot] urdf", &file.robot.urdf)?)?;
         let mount = Mount::of(&robot, &file.robot, &file, &profile, path)?;
@@ -415,7 +441,32 @@ impl Experiment {
         }
         let scanner = file.sensor.build().map_err(&bad)?;
         check_range_axis(&profile, &scanner).map_err(&bad)?;
-        file.believed.check(&profile).map_err(&bad)?;
+        let mut believed = file.believed.clone();
+        let told_path = match &believed.profile {
+            Some(told) => Some(referred(path, "[believed] profile", told)?),
+            None => None,
+        };
+        // The drawn profile named again is the calibrated belief (with the
+        // cell's `profile.<path>` values).
+        if told_path
+            .as_ref()
+            .is_some_and(|told| same_file(told, &profile_path))
+        {
+            believed.profile = None;
+        }
+        let believed_profile = match told_path.filter(|_| believed.profile.is_some()) {
+            Some(told) => {
+                let told = swept.believed_profile(&told)?;
+                check_joint_errors(&told, &robot, &mount.arm)?;
+                check_range_axis(&told, &scanner)
+                    .map_err(|e| bad(format!("[believed] profile: {e}")))?;
+                Some(told)
+            }
+            None => None,
+        };
+        believed
+            .check(believed_profile.as_ref().unwrap_or(&profile))
+            .map_err(&bad)?;
         let (map, samples_over_budget) =
             map_settings(&file, overrides, scanner.directions().len()).map_err(&bad)?;
         let sigma_set = match &file.unscented {
@@ -467,7 +518,8 @@ impl Experiment {
             world_from_base: mount.world_from_base,
             world_from_scene: mount.world_from_scene,
             scanner,
-            believed: file.believed,
+            believed,
+            believed_profile,
             profile,
             viewpoints: Vec::new(),
             sweep: file.sweeps,
