@@ -532,6 +532,22 @@ fn the_quickstart_explains_itself() {
     );
     assert!(!stdout.contains("NaN") && stdout.contains('–'), "{stdout}");
     assert!(stdout.contains("higher is better") && stdout.contains("3 = honest"));
+    // The per-point consistency check: blind leaves the pose error out.
+    let verdict = |method: &str| {
+        stdout
+            .lines()
+            .find(|l| l.starts_with(method) && l.contains("band ["))
+            .and_then(|l| l.split_whitespace().last())
+            .unwrap_or_default()
+            .to_string()
+    };
+    assert_eq!(verdict("blind"), "over-confident", "{stdout}");
+    assert_eq!(verdict("unscented"), "consistent", "{stdout}");
+    assert_eq!(
+        verdict("ray_update"),
+        "",
+        "the ray update propagates nothing"
+    );
     assert!(
         stderr.contains("map_blind.bt, map_unscented.bt, map_ray_update.bt")
             && !stderr.contains("<method>"),

@@ -8,6 +8,7 @@ use crate::experiment::study::batch::{run_experiment, RunOptions, OTHER_INPUTS};
 use crate::experiment::study::merge::merge_shards;
 use crate::experiment::study::summary::{PairedRow, SummaryRow};
 use crate::experiment::Experiment;
+use crate::uncertainty::consistency::Consistency;
 use indicatif::ProgressBar;
 
 /// `sigmap run`.
@@ -59,6 +60,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     ProgressBar::finish_and_clear(&bar);
     if !args.run.quiet {
         print_headline(&outcome.experiment, &outcome.summary, outcome.runs);
+        print_consistency(&outcome.experiment, &outcome.summary);
         print_paired(&outcome.experiment, &outcome.paired);
         let methods = outcome.experiment.methods();
         let maps: Vec<String> = methods.iter().map(|m| format!("map_{m}.bt")).collect();
@@ -132,6 +134,42 @@ fn print_headline(experiment: &Experiment, summary: &[SummaryRow], rows: usize) 
         "(higher is better: prec, recall, F1, ROC AUC; lower: false-free = truly occupied cells \
          called free, unknown, Brier; ANEES: 3 = honest covariances, – = not propagated)"
     );
+}
+
+/// The first cell's per-point consistency check of each method that
+/// propagates: the mean NEES of one point a run over the seeds against the
+/// band honest covariances give it (report.html's table, every cell).
+fn print_consistency(experiment: &Experiment, summary: &[SummaryRow]) {
+    let first = summary.first().map(|s| s.cell.clone()).unwrap_or_default();
+    let w = method_width(experiment);
+    let mut header = false;
+    for method in experiment.methods() {
+        let Some(row) = summary.iter().find(|s| {
+            s.cell == first
+                && s.method == method.as_str()
+                && s.metric == "nees_point"
+                && s.n > 1
+                && s.mean.is_finite()
+        }) else {
+            continue;
+        };
+        if !header {
+            println!(
+                "consistency (mean NEES of one point a run over the seeds; honest covariances \
+                 put it in the 95% band 19 times in 20):"
+            );
+            header = true;
+        }
+        let (verdict, band) = Consistency::of_mean_nees(row.mean, row.n);
+        println!(
+            "{:<w$} {:>9.2}  band [{:.2}, {:.2}]  {}",
+            method.as_str(),
+            row.mean,
+            band.0,
+            band.1,
+            verdict.as_str()
+        );
+    }
 }
 
 /// `v` with `digits` decimals, or `–` when there is no value.

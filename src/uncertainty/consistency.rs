@@ -29,6 +29,44 @@ pub fn anees_bounds(n: usize, dof: usize, level: f64) -> (f64, f64) {
     )
 }
 
+/// Where the mean NEES of `n` independent 3-D errors lies against the 95%
+/// band honest covariances give it ([`anees_bounds`]): above it the
+/// covariances are too small, below it too large (docs/math.md §6.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Consistency {
+    /// Above the band.
+    OverConfident,
+    /// Inside it.
+    Consistent,
+    /// Below it.
+    Conservative,
+}
+
+impl Consistency {
+    /// The verdict on the mean NEES `mean` of `n` independent points, with
+    /// the band it is judged against.
+    pub fn of_mean_nees(mean: f64, n: usize) -> (Self, (f64, f64)) {
+        let band = anees_bounds(n, 3, 0.95);
+        let verdict = if mean > band.1 {
+            Self::OverConfident
+        } else if mean < band.0 {
+            Self::Conservative
+        } else {
+            Self::Consistent
+        };
+        (verdict, band)
+    }
+
+    /// Its name for people.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::OverConfident => "over-confident",
+            Self::Consistent => "consistent",
+            Self::Conservative => "conservative",
+        }
+    }
+}
+
 /// The `p` quantile of χ²_k, by bisection on statrs' CDF to 1e-12 relative
 /// (statrs' own `inverse_cdf` stops at about 1e-3).
 pub fn chi_square_quantile(k: f64, p: f64) -> f64 {

@@ -11,7 +11,7 @@ use crate::experiment::study::journal::Inputs;
 use crate::experiment::study::summary::{PairedRow, SummaryRow, Verdict};
 use crate::experiment::Experiment;
 use crate::files::write_file;
-use crate::uncertainty::consistency::anees_bounds;
+use crate::uncertainty::consistency::Consistency;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -361,7 +361,7 @@ fn consistency(html: &mut String, summary: &[SummaryRow]) {
          <th>95% band if honest</th><th>verdict</th></tr>\n",
     );
     for row in rows {
-        let band = anees_bounds(row.n, 3, 0.95);
+        let (verdict, band) = Consistency::of_mean_nees(row.mean, row.n);
         let _ = writeln!(
             html,
             "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td><td>[{:.2}, {:.2}]</td>\
@@ -372,21 +372,10 @@ fn consistency(html: &mut String, summary: &[SummaryRow]) {
             row.mean,
             band.0,
             band.1,
-            nees_verdict(row.mean, band)
+            verdict.as_str()
         );
     }
     html.push_str("</table>\n");
-}
-
-/// Where a mean NEES lies against the band honest covariances give it.
-fn nees_verdict(mean: f64, (low, high): (f64, f64)) -> &'static str {
-    if mean > high {
-        "over-confident"
-    } else if mean < low {
-        "conservative"
-    } else {
-        "consistent"
-    }
 }
 
 fn readable_cell(cell: &str) -> String {
@@ -482,7 +471,7 @@ mod tests {
         ];
         let mut html = String::new();
         consistency(&mut html, &summary);
-        let band = anees_bounds(40, 3, 0.95);
+        let band = crate::uncertainty::consistency::anees_bounds(40, 3, 0.95);
         assert!(
             (band.0 - 2.289).abs() < 1e-3 && (band.1 - 3.805).abs() < 1e-3,
             "{band:?}"
