@@ -5,8 +5,9 @@
 //!
 //! For seeds 1..=SEEDS: the true occupancy as the run's drawn registration
 //! (T_sw) places it, blurred over DRAWS further draws of the registration
-//! error (what a map that knows the registration's covariance, and nothing
-//! else wrong, would believe), called occupied where that belief exceeds τ,
+//! error as the maps are told it (what a map that knows the registration's
+//! covariance, and nothing else wrong, would believe; the drawn one unless
+//! the experiment's `[believed]` says otherwise), called occupied where that belief exceeds τ,
 //! scored against the truth on the run's observable cells. Prints, per τ,
 //! the mean precision, false-free rate and F1, and each one's paired
 //! difference from the registered truth (the reference method
@@ -107,9 +108,11 @@ fn ceiling(experiment: &Experiment, seeds: u64, draws: usize) -> sigmap::Result<
         blurred: vec![Vec::new(); THRESHOLDS.len()],
     };
     let nominal = experiment.world_from_scene().to_isometry();
+    // The registration's covariance as the maps are told it ([believed]).
     let registration = UncertainPose {
         mean: experiment.world_from_scene(),
-        covariance: experiment.profile().world_from_scene,
+        covariance: experiment.believed_profile().world_from_scene
+            * experiment.believed().pose_variance(),
     };
     let resolution = experiment.resolution();
     for seed in 1..=seeds {
