@@ -56,6 +56,30 @@ fn regress_refuses_what_it_cannot_compare() {
     );
     // The baseline against itself passes.
     assert!(sigmap(&["regress", b, "--baseline", b]).status.success());
+    // A consistency check of a method that propagates nothing, or of none.
+    refused(
+        &["regress", b, "--consistent", "ray_update"],
+        "quickstart.csv",
+        "no nees_point of 'ray_update' (the methods that propagate covariances here: blind, \
+         unscented)",
+    );
+    refused(
+        &["regress", b],
+        "regress",
+        "give --baseline BASELINE.csv, --consistent METHOD",
+    );
+    refused(
+        &[
+            "regress",
+            b,
+            "--consistent",
+            "unscented",
+            "--tolerance",
+            "f1=0.1",
+        ],
+        "--tolerance",
+        "needs --baseline",
+    );
 }
 
 #[test]

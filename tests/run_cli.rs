@@ -210,6 +210,60 @@ fn bad_method_lists_exit_2() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown method 'magic'"));
 }
 
+/// `regress --consistent METHOD` passes a method whose mean one-point NEES
+/// lies in its band and fails (exit 1, the verdict printed) one above it,
+/// with or without a baseline.
+#[test]
+fn regress_checks_the_consistency_of_a_method() {
+    let baseline = "results/baselines/quickstart.csv";
+    let ok = sigmap(&["regress", baseline, "--consistent", "unscented"]);
+    let stdout = String::from_utf8_lossy(&ok.stdout);
+    assert!(ok.status.success(), "{stdout}");
+    assert!(stdout.starts_with("consistent unscented:"), "{stdout}");
+    let both = sigmap(&[
+        "regress",
+        baseline,
+        "--baseline",
+        baseline,
+        "--consistent",
+        "unscented",
+        "--consistent",
+        "blind",
+    ]);
+    let stdout = String::from_utf8_lossy(&both.stdout);
+    let stderr = String::from_utf8_lossy(&both.stderr);
+    assert_eq!(both.status.code(), Some(1), "{stdout}{stderr}");
+    assert!(stdout.contains("no regression") && stdout.contains("over-confident blind:"));
+    assert!(
+        stderr.contains("1 of 2 consistency checks failed"),
+        "{stderr}"
+    );
+    // The unscented map's mean NEES ten times over: over-confident.
+    let dir = tempfile::tempdir().unwrap();
+    let inflated = dir.path().join("inflated.csv");
+    let text: String = std::fs::read_to_string(baseline)
+        .unwrap()
+        .lines()
+        .map(|line| match line.strip_prefix(",unscented,nees_point,3,") {
+            Some(rest) => {
+                let mut fields: Vec<String> = rest.split(',').map(String::from).collect();
+                fields[0] = format!("{}", 10.0 * fields[0].parse::<f64>().unwrap());
+                format!(",unscented,nees_point,3,{}\n", fields.join(","))
+            }
+            None => format!("{line}\n"),
+        })
+        .collect();
+    std::fs::write(&inflated, text).unwrap();
+    let out = sigmap(&[
+        "regress",
+        inflated.to_str().unwrap(),
+        "--consistent",
+        "unscented",
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stdout).starts_with("over-confident unscented:"));
+}
+
 #[test]
 fn regress_passes_on_the_baseline_and_fails_on_a_drift() {
     let ok = sigmap(&[

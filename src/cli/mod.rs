@@ -148,13 +148,18 @@ pub(crate) struct MergeArgs {
 pub(crate) struct RegressArgs {
     /// The current summary.csv.
     current: PathBuf,
-    /// The baseline summary.csv.
+    /// The baseline summary.csv (this, `--consistent`, or both).
     #[arg(long)]
-    baseline: PathBuf,
+    baseline: Option<PathBuf>,
     /// Override a metric's tolerance: METRIC=VALUE (absolute), repeatable.
     /// Defaults: 0.01 for scores in [0, 1]; 5% of the baseline for anees and log_loss.
     #[arg(long)]
     tolerance: Vec<String>,
+    /// Also fail unless METHOD's covariances are consistent in every cell:
+    /// its mean NEES of one point a run within the 95% band honest
+    /// covariances give it; repeatable.
+    #[arg(long, value_name = "METHOD")]
+    consistent: Vec<String>,
 }
 
 #[derive(Args, Debug)]

@@ -4,6 +4,7 @@
 use crate::error::{Error, Result};
 use crate::experiment::study::metrics::Tolerance;
 use crate::experiment::study::summary::SummaryRow;
+use crate::uncertainty::consistency::Consistency;
 use std::collections::BTreeSet;
 use std::path::Path;
 
@@ -74,6 +75,71 @@ pub fn compare(
             }
         })
         .collect()
+}
+
+/// The per-point consistency check of one method in one cell: its mean
+/// NEES of one point a run over the seeds (`nees_point`) against the 95%
+/// band honest covariances give that mean (docs/math.md §6.2, §6.6).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConsistencyCheck {
+    /// The sweep cell.
+    pub cell: String,
+    /// Seeds with a finite value.
+    pub n: usize,
+    /// The mean (NaN when no seed has one).
+    pub mean: f64,
+    /// The band.
+    pub band: (f64, f64),
+    /// Where the mean lies; `None` without a finite mean.
+    pub verdict: Option<Consistency>,
+}
+
+impl ConsistencyCheck {
+    /// Outside the band, or nothing to judge.
+    pub fn failed(&self) -> bool {
+        self.verdict != Some(Consistency::Consistent)
+    }
+}
+
+/// The consistency check of `method` in every cell of `summary`, or why
+/// there is none: the summary has no finite `nees_point` of that method
+/// (it propagates no covariance, or is not in the summary).
+pub fn check_consistency(
+    summary: &[SummaryRow],
+    method: &str,
+) -> std::result::Result<Vec<ConsistencyCheck>, String> {
+    let checks: Vec<ConsistencyCheck> = summary
+        .iter()
+        .filter(|r| r.method == method && r.metric == "nees_point")
+        .map(|r| {
+            let judged = r.n > 0 && r.mean.is_finite();
+            let (verdict, band) = Consistency::of_mean_nees(r.mean, r.n);
+            ConsistencyCheck {
+                cell: r.cell.clone(),
+                n: r.n,
+                mean: r.mean,
+                band,
+                verdict: judged.then_some(verdict),
+            }
+        })
+        .collect();
+    if !checks.iter().any(|c| c.verdict.is_some()) {
+        let methods: BTreeSet<&str> = summary
+            .iter()
+            .filter(|r| r.metric == "nees_point" && r.n > 0 && r.mean.is_finite())
+            .map(|r| r.method.as_str())
+            .collect();
+        return Err(format!(
+            "--consistent {method}: the summary has no nees_point of '{method}' (the methods \
+             that propagate covariances here: {})",
+            if methods.is_empty() {
+                "none".to_string()
+            } else {
+                methods.into_iter().collect::<Vec<_>>().join(", ")
+            }
+        ));
+    }
+    Ok(checks)
 }
 
 /// The rows of a `summary.csv`: at least one, none repeated.
@@ -150,5 +216,47 @@ mod tests {
         assert!(result[2].regressed(), "a method that vanished regresses");
         let relaxed = compare(&current, &baseline, &[("f1".into(), 0.05)]);
         assert!(!relaxed[0].regressed());
+    }
+
+    /// Each cell's mean one-point NEES is judged against the band of its
+    /// own seed count; a mean outside it, or no finite mean, fails; a method
+    /// with no NEES is no check at all.
+    #[test]
+    fn the_consistency_check_judges_each_cell() {
+        let mut rows = vec![
+            row("unscented", "nees_point", 2.6),
+            row("blind", "nees_point", 143.0),
+            row("ray_update", "f1", 0.9),
+            SummaryRow {
+                n: 0,
+                ..row("ray_update", "nees_point", f64::NAN)
+            },
+        ];
+        rows.push(SummaryRow {
+            cell: "a=2".into(),
+            n: 40,
+            ..row("unscented", "nees_point", 2.0)
+        });
+        rows.push(SummaryRow {
+            cell: "a=3".into(),
+            n: 0,
+            ..row("unscented", "nees_point", f64::NAN)
+        });
+        let checks = check_consistency(&rows, "unscented").unwrap();
+        let failed: Vec<_> = checks.iter().map(ConsistencyCheck::failed).collect();
+        assert_eq!(failed, [false, true, true]);
+        assert_eq!(checks[1].verdict, Some(Consistency::Conservative));
+        assert!(
+            (checks[1].band.0 - 2.289).abs() < 1e-3,
+            "{:?}",
+            checks[1].band
+        );
+        assert_eq!(checks[2].verdict, None);
+        let blind = check_consistency(&rows, "blind").unwrap();
+        assert_eq!(blind[0].verdict, Some(Consistency::OverConfident));
+        for method in ["ray_update", "octomap"] {
+            let message = check_consistency(&rows, method).unwrap_err();
+            assert!(message.contains("here: blind, unscented"), "{message}");
+        }
     }
 }
