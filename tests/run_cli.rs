@@ -398,6 +398,20 @@ fn sweeps_run_every_cell_and_reject_unknown_fields() {
     let mut reader = csv::Reader::from_path(out.join("runs.csv")).unwrap();
     let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
     assert_eq!(rows.len(), 2 * 3);
+    // Rerun (resumed) without -q: the terminal shows the first cell and
+    // says where the others are.
+    let again = sigmap(&[
+        "run",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&again.stdout);
+    assert!(
+        stdout.contains("cell pose_error_scale=0\n")
+            && stdout.contains("(the first of 2 sweep cells; all of them: summary.csv"),
+        "{stdout}"
+    );
     assert_eq!(&rows[0][0], "pose_error_scale=0");
     let scores = std::fs::read_to_string(out.join("scores.svg")).unwrap();
     assert!(scores.contains("pose_error_scale") && scores.contains("false-free rate"));

@@ -62,6 +62,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         print_headline(&outcome.experiment, &outcome.summary, outcome.runs);
         print_consistency(&outcome.experiment, &outcome.summary);
         print_paired(&outcome.experiment, &outcome.paired);
+        print_other_cells(&outcome.experiment);
         let methods = outcome.experiment.methods();
         let maps: Vec<String> = methods.iter().map(|m| format!("map_{m}.bt")).collect();
         let errors: Vec<String> = methods.iter().map(|m| format!("errors_{m}.ply")).collect();
@@ -170,6 +171,27 @@ fn print_consistency(experiment: &Experiment, summary: &[SummaryRow]) {
             verdict.as_str()
         );
     }
+}
+
+/// With a sweep, where the cells the terminal leaves out are.
+fn print_other_cells(experiment: &Experiment) {
+    let others = experiment.cells().len().saturating_sub(1);
+    if others == 0 {
+        return;
+    }
+    let across = if experiment
+        .sweep()
+        .iter()
+        .any(|axis| axis.reference.is_some())
+    {
+        ", each cell against its axes' reference values"
+    } else {
+        ""
+    };
+    println!(
+        "(the first of {} sweep cells; all of them{across}: summary.csv, paired.csv, report.html)",
+        others + 1
+    );
 }
 
 /// `v` with `digits` decimals, or `–` when there is no value.
