@@ -226,6 +226,45 @@ impl Mount {
     }
 }
 
+/// The `[believed]` table of the experiment at `path` whose drawn profile
+/// is `profile` (read from `profile_path`), checked, with the profile it
+/// names loaded at the cell's pose scale (`None`: the drawn profile's
+/// errors, also when it names the drawn profile's file).
+fn believed_of(
+    table: &BelievedErrors,
+    (path, profile, profile_path): (&Path, &ErrorProfile, &Path),
+    swept: &SweptValues,
+    (robot, arm, scanner): (&Robot, &KinematicChain, &Scanner),
+) -> Result<(BelievedErrors, Option<ErrorProfile>)> {
+    let mut believed = table.clone();
+    let told_path = match &believed.profile {
+        Some(told) => Some(referred(path, "[believed] profile", told)?),
+        None => None,
+    };
+    // The drawn profile named again is the calibrated belief (with the
+    // cell's `profile.<path>` values).
+    if told_path
+        .as_ref()
+        .is_some_and(|told| same_file(told, profile_path))
+    {
+        believed.profile = None;
+    }
+    let told = match told_path.filter(|_| believed.profile.is_some()) {
+        Some(told) => {
+            let told = swept.believed_profile(&told)?;
+            check_joint_errors(&told, robot, arm)?;
+            check_range_axis(&told, scanner)
+                .map_err(|e| Error::input(path, format!("[believed] profile: {e}")))?;
+            Some(told)
+        }
+        None => None,
+    };
+    believed
+        .check(told.as_ref().unwrap_or(profile))
+        .map_err(|e| Error::input(path, e))?;
+    Ok((believed, told))
+}
+
 /// Whether `a` and `b` name the same file (by their canonical paths).
 fn same_file(a: &Path, b: &Path) -> bool {
     match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
@@ -441,32 +480,12 @@ impl Experiment {
         }
         let scanner = file.sensor.build().map_err(&bad)?;
         check_range_axis(&profile, &scanner).map_err(&bad)?;
-        let mut believed = file.believed.clone();
-        let told_path = match &believed.profile {
-            Some(told) => Some(referred(path, "[believed] profile", told)?),
-            None => None,
-        };
-        // The drawn profile named again is the calibrated belief (with the
-        // cell's `profile.<path>` values).
-        if told_path
-            .as_ref()
-            .is_some_and(|told| same_file(told, &profile_path))
-        {
-            believed.profile = None;
-        }
-        let believed_profile = match told_path.filter(|_| believed.profile.is_some()) {
-            Some(told) => {
-                let told = swept.believed_profile(&told)?;
-                check_joint_errors(&told, &robot, &mount.arm)?;
-                check_range_axis(&told, &scanner)
-                    .map_err(|e| bad(format!("[believed] profile: {e}")))?;
-                Some(told)
-            }
-            None => None,
-        };
-        believed
-            .check(believed_profile.as_ref().unwrap_or(&profile))
-            .map_err(&bad)?;
+        let (believed, believed_profile) = believed_of(
+            &file.believed,
+            (path, &profile, &profile_path),
+            &swept,
+            (&robot, &mount.arm, &scanner),
+        )?;
         let (map, samples_over_budget) =
             map_settings(&file, overrides, scanner.directions().len()).map_err(&bad)?;
         let sigma_set = match &file.unscented {
