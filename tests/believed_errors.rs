@@ -421,3 +421,37 @@ fn a_believed_profile_is_checked_and_fingerprinted() {
     .unwrap();
     assert_ne!(print(), before, "the believed profile is an input");
 }
+
+/// A sweep's `profile.<path>` values change the drawn profile alone: a
+/// believed profile of another file keeps its own value, while naming the
+/// drawn profile's file again is the calibrated belief and follows them.
+#[test]
+fn profile_sweep_values_change_the_drawn_profile_alone() {
+    use sigmap::experiment::SweepValue;
+    let cell = [
+        ("pose_error_scale".to_string(), SweepValue::Number(1.0)),
+        (
+            "profile.range.sigma0".to_string(),
+            SweepValue::Number(0.003),
+        ),
+    ];
+    let shipped = common::root().join("experiments/believed_arm.toml");
+    let told = |profile: &str| -> Experiment {
+        let cell: Vec<_> = cell
+            .iter()
+            .cloned()
+            .chain([(
+                "experiment.believed.profile".to_string(),
+                SweepValue::Text(format!("profiles/{profile}")),
+            )])
+            .collect();
+        Experiment::load_cell(&shipped, &cell).unwrap()
+    };
+    let other = told("collaborative_arm_poses.toml");
+    assert_eq!(other.profile().range.sigma0, 0.003);
+    assert_eq!(other.believed_profile().range.sigma0, 0.001);
+    assert_eq!(other.mapper_view().range.sigma0, 0.001);
+    let same = told("collaborative_arm.toml");
+    assert!(same.believed().is_calibrated());
+    assert_eq!(same.mapper_view().range.sigma0, 0.003);
+}
