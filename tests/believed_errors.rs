@@ -233,8 +233,8 @@ fn the_results_say_what_the_maps_were_told() {
                 other_dir.path(),
                 &believed_profile("industrial.toml", ", sensor_sigma = 2.0"),
             ),
-            "pose σ × 1, range σ × 2 of the profile 'industrial''s, while the simulator \
-             draws 'collaborative''s",
+            "pose σ × 1, range σ × 2 of those of the profile 'industrial' (the simulator \
+             draws those of 'collaborative')",
         ),
         (
             shipped("believed_errors.toml"),

@@ -28,7 +28,7 @@ pub fn told_errors(experiment: &super::Experiment) -> String {
         .any(|axis| axis.field.starts_with("experiment.believed."));
     let whose = match believed.profile {
         Some(_) => format!(
-            "the profile '{}''s, while the simulator draws '{}''s",
+            "those of the profile '{}' (the simulator draws those of '{}')",
             experiment.believed_profile().name,
             experiment.profile().name
         ),
