@@ -101,9 +101,11 @@ enum Command {
     Submit(SubmitArgs),
     /// Say which runs of a submitted experiment are done, missing or failed
     Status(StatusArgs),
-    /// Compare a summary.csv with a baseline; exit 1 on a regression
+    /// Compare a summary.csv with a baseline, or check a method's
+    /// consistency; exit 1 on a regression or an inconsistent method
     ///
-    /// Prints a table of the metrics whose mean drifted past its tolerance.
+    /// Prints a table of the metrics whose mean drifted past its tolerance,
+    /// and a verdict per cell for each method checked.
     Regress(RegressArgs),
 }
 
@@ -155,9 +157,9 @@ pub(crate) struct RegressArgs {
     /// Defaults: 0.01 for scores in [0, 1]; 5% of the baseline for anees and log_loss.
     #[arg(long)]
     tolerance: Vec<String>,
-    /// Also fail unless METHOD's covariances are consistent in every cell:
-    /// its mean NEES of one point a run within the 95% band honest
-    /// covariances give it; repeatable.
+    /// Fail unless METHOD's covariances are consistent in every cell: its
+    /// mean NEES of one point a run within the 95% band honest covariances
+    /// give it; repeatable.
     #[arg(long, value_name = "METHOD")]
     consistent: Vec<String>,
 }
