@@ -616,6 +616,22 @@ fn the_quickstart_explains_itself() {
         "",
         "the ray update propagates nothing"
     );
+    // README.md shows what the quickstart prints: every line of its block
+    // but the elisions is a line of the output.
+    let readme = std::fs::read_to_string("README.md").unwrap();
+    let block = readme
+        .split_once("It prints:\n\n```\n")
+        .and_then(|(_, rest)| rest.split_once("```"))
+        .map(|(block, _)| block)
+        .expect("README.md shows the quickstart's output");
+    let shown: Vec<&str> = block.lines().filter(|l| l.trim() != "...").collect();
+    assert!(shown.len() >= 10, "{block}");
+    for line in shown {
+        assert!(
+            stdout.lines().any(|out| out == line),
+            "README.md shows a line the quickstart does not print: {line}\n{stdout}"
+        );
+    }
     assert!(
         stderr.contains("map_blind.bt, map_unscented.bt, map_ray_update.bt")
             && !stderr.contains("<method>"),
