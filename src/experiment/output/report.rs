@@ -336,8 +336,6 @@ fn paired_table(html: &mut String, experiment: &Experiment, cell: &str, paired: 
     }
 }
 
-/// A cell label (`field=value;field=value`) as the page writes it, with room
-/// to wrap after each `;`.
 /// The per-point consistency check of each method that propagates, cell
 /// by cell: the mean over the seeds of one point's NEES a run
 /// (`nees_point`, independent across seeds) against the 95% band honest
@@ -378,6 +376,8 @@ fn consistency(html: &mut String, summary: &[SummaryRow]) {
     html.push_str("</table>\n");
 }
 
+/// A cell label (`field=value;field=value`) as the page writes it, with room
+/// to wrap after each `;`.
 fn readable_cell(cell: &str) -> String {
     cell.replace(';', "; ")
 }

@@ -2,7 +2,7 @@
 
 use crate::error::{Error, Result};
 use crate::experiment::Experiment;
-use crate::geometry::{Isometry3, Matrix6};
+use crate::geometry::Isometry3;
 use crate::mapping::scan::{NominalChain, Scan};
 use crate::sim::scan::{cast_beams, ScanTruth};
 use crate::sim::streams::{Stream, Streams};
@@ -78,22 +78,20 @@ pub fn simulate(
                 format!("viewpoint {index} ({}): {e}", viewpoint.request),
             )
         })?;
-        let told_arm = if experiment.believed().profile.is_some() {
-            arm_covariance(
-                &told.arm,
-                experiment.arm(),
-                &experiment.world_from_base(),
-                &viewpoint.joints,
+        // What the scan states of the arm's error: the believed arm's at
+        // these joints (for a calibrated belief, the drawn arm's to the bit).
+        let told_arm = arm_covariance(
+            &told.arm,
+            experiment.arm(),
+            &experiment.world_from_base(),
+            &viewpoint.joints,
+        )
+        .map_err(|e| {
+            Error::input(
+                &told.source,
+                format!("viewpoint {index} ({}): {e}", viewpoint.request),
             )
-            .map_err(|e| {
-                Error::input(
-                    &told.source,
-                    format!("viewpoint {index} ({}): {e}", viewpoint.request),
-                )
-            })?
-        } else {
-            arm.believed.covariance
-        };
+        })?;
         let scene_from_camera =
             true_world_from_scene.inverse() * arm.truth * true_robot_from_camera;
         let (measurements, beams) = cast_beams(
@@ -105,17 +103,22 @@ pub fn simulate(
             index as u32,
         );
         // Each scan states its pose errors as the maps are told them.
-        let stated = |pose: &UncertainPose, covariance: Matrix6| UncertainPose {
-            mean: pose.mean,
-            covariance,
-        };
         scans.push(Scan {
             viewpoint: index,
             joints: viewpoint.joints.clone(),
             chain: NominalChain {
-                world_from_scene: stated(&world_from_scene, told_world_from_scene),
-                world_from_robot: stated(&arm.believed, told_arm * told_variance),
-                robot_from_camera: stated(&robot_from_camera, told_robot_from_camera),
+                world_from_scene: UncertainPose {
+                    mean: world_from_scene.mean,
+                    covariance: told_world_from_scene,
+                },
+                world_from_robot: UncertainPose {
+                    mean: arm.believed.mean,
+                    covariance: told_arm * told_variance,
+                },
+                robot_from_camera: UncertainPose {
+                    mean: robot_from_camera.mean,
+                    covariance: told_robot_from_camera,
+                },
             },
             measurements,
         });
