@@ -265,7 +265,7 @@ fn map_scans_refuses_bad_graphs_and_profiles() {
 fn the_command_line_lists_values_and_checks_negative_numbers() {
     let help = String::from_utf8_lossy(&sigmap(&["map", "--help"]).stdout).into_owned();
     assert!(
-        help.contains("[possible values: blind, jacobian, unscented, correlated, ray_update, ray_update_discrete, registered_truth, consensus_truth]")
+        help.contains("[possible values: blind, jacobian, unscented, correlated, ray_update, ray_update_discrete, registered_truth, consensus_truth, registration_belief]")
             && help.contains("[possible values: off, faces, windows]"),
         "{help}"
     );

@@ -326,9 +326,10 @@ fn score_gives_a_maps_run_row() {
 
 #[test]
 fn the_truth_references_are_mapped_and_scored_as_run_scores_them() {
-    // `sigmap map --method registered_truth` (or consensus_truth) writes the
+    // `sigmap map --method registered_truth` (or consensus_truth, or
+    // registration_belief: the same draws over the workspace) writes the
     // reference that `run` scores; recorded scans have no truth to give it.
-    for method in ["registered_truth", "consensus_truth"] {
+    for method in ["registered_truth", "consensus_truth", "registration_belief"] {
         let dir = tempfile::tempdir().unwrap();
         let (_, ours, theirs) = map_run_and_score(dir.path(), method, 2);
         assert_same_scores(&ours, &theirs);

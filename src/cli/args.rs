@@ -167,8 +167,9 @@ pub(crate) struct MapArgs {
     /// blind, jacobian, unscented, correlated, ray_update or
     /// ray_update_discrete (OctoMap's insertion with discretize = true); or
     /// registered_truth (the truth as the run's scene registration places
-    /// it) or consensus_truth (as its scans together place it; neither for
-    /// --scans).
+    /// it), consensus_truth (as its scans together place it) or
+    /// registration_belief (the registered truth blurred over the
+    /// registration's covariance; none of the three for --scans).
     #[arg(long, default_value = "unscented", value_parser = method_parser())]
     pub(crate) method: crate::mapping::Method,
     /// Finest voxel edge (m) [default: the experiment's `resolution`; with

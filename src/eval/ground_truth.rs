@@ -58,7 +58,39 @@ pub fn voxelise_within(
     let mut tree = Octree::new(resolution);
     let voxeliser = Voxeliser {
         scene,
-        placement: Placement::new(map_from_scene),
+        known: Placement::new(map_from_scene),
+        voters: Voters::Known,
+        region: *region,
+    };
+    voxeliser.recurse(&mut tree, Key([0, 0, 0]), 0);
+    tree
+}
+
+/// A vote over placements of the scene: each finest cell of `region` that
+/// [`voxelise_within`] at `map_from_scene` knows is occupied where at least
+/// `needed` of `draws` put a solid in it (each draw's cell decided by the
+/// same rule, a draw whose cell centre leaves the workspace not voting for
+/// it) and free otherwise; every other cell unknown. The same tree as
+/// voxelising each draw and counting, cell by cell, in the time of one
+/// recursion over the union of the draws' surfaces: a block is decided
+/// whole when enough draws hold it inside a solid, or too few meet a solid
+/// at all (`registration_belief`, docs/math.md §7.5).
+pub fn voxelise_votes(
+    scene: &Scene,
+    resolution: f64,
+    map_from_scene: &Isometry3,
+    draws: &[Isometry3],
+    needed: usize,
+    region: &KeyBox,
+) -> Octree {
+    let mut tree = Octree::new(resolution);
+    let voxeliser = Voxeliser {
+        scene,
+        known: Placement::new(map_from_scene),
+        voters: Voters::Draws {
+            placements: draws.iter().map(Placement::new).collect(),
+            needed,
+        },
         region: *region,
     };
     voxeliser.recurse(&mut tree, Key([0, 0, 0]), 0);
@@ -193,36 +225,62 @@ struct SceneCell {
 }
 
 /// What one voxelisation decides cells with: the scene, where the map's
-/// cells lie in it, and the cells wanted.
+/// cells lie in it (`known`: which cells the tree knows), who votes on
+/// their occupancy, and the cells wanted.
 struct Voxeliser<'a> {
     scene: &'a Scene,
-    placement: Placement,
+    known: Placement,
+    voters: Voters,
     region: KeyBox,
+}
+
+/// Who decides a cell's occupancy.
+enum Voters {
+    /// The known placement alone: the truth as it places the scene.
+    Known,
+    /// Occupied where at least `needed` of `placements` put a solid.
+    Draws {
+        placements: Vec<Placement>,
+        needed: usize,
+    },
+}
+
+/// How a block of cells is called as a whole, if it can be.
+enum Block {
+    Free,
+    Occupied,
+    Split,
 }
 
 impl Voxeliser<'_> {
     fn recurse(&self, tree: &mut Octree, key: Key, depth: u8) {
-        let (scene, placement, region) = (self.scene, &self.placement, &self.region);
+        let (scene, region) = (self.scene, &self.region);
         if !region.meets(&key, depth) {
             return;
         }
-        let cell = placement.cell(tree, &key, depth);
+        let cell = self.known.cell(tree, &key, depth);
         let ws = &scene.workspace;
         if !cell.bounds.intersects(ws) {
             return;
         }
+        let clamp = Clamp::OCTOMAP;
         if depth == DEPTH {
             if !ws.contains(&cell.centre) {
                 return;
             }
-            let scene_from_cell =
-                Isometry3::from_parts(cell.centre.coords.into(), placement.scene_from_map.rotation);
-            let half = Vector3::repeat(cell.half - TOUCH);
-            let occupied = scene
-                .objects_near(&cell.bounds.min, &cell.bounds.max)
-                .into_iter()
-                .any(|o| scene.box_meets_object(o, &scene_from_cell, &half));
-            let clamp = Clamp::OCTOMAP;
+            let occupied = match &self.voters {
+                Voters::Known => self.holds_solid(&self.known, &cell),
+                Voters::Draws { placements, needed } => {
+                    let votes = placements
+                        .iter()
+                        .filter(|p| {
+                            let drawn = p.cell(tree, &key, depth);
+                            ws.contains(&drawn.centre) && self.holds_solid(p, &drawn)
+                        })
+                        .count();
+                    votes >= *needed
+                }
+            };
             tree.update(&key, if occupied { clamp.max } else { clamp.min }, clamp);
             return;
         }
@@ -231,22 +289,13 @@ impl Voxeliser<'_> {
             // A block no solid comes near is free as a whole, one that lies
             // inside a solid occupied as a whole: the tree grows with the
             // surfaces, not with the volumes they enclose.
-            let near = scene.objects_near(&min, &max);
-            let scene_from_cell =
-                Isometry3::from_parts(cell.centre.coords.into(), placement.scene_from_map.rotation);
-            let half = Vector3::repeat(cell.half);
-            let value = if near.is_empty() {
-                Some(Clamp::OCTOMAP.min)
-            } else if near
-                .iter()
-                .any(|&o| scene.box_inside_object(o, &scene_from_cell, &half))
-            {
-                Some(Clamp::OCTOMAP.max)
-            } else {
-                None
+            let value = match self.block(tree, &key, depth, &cell) {
+                Block::Free => Some(clamp.min),
+                Block::Occupied => Some(clamp.max),
+                Block::Split => None,
             };
             if let Some(value) = value {
-                tree.update_region(&key, depth, value, Clamp::OCTOMAP);
+                tree.update_region(&key, depth, value, clamp);
                 return;
             }
         }
@@ -257,6 +306,63 @@ impl Voxeliser<'_> {
                 *kk |= ((child >> axis) & 1) << bit;
             }
             self.recurse(tree, k, depth + 1);
+        }
+    }
+
+    /// Whether the finest cell `cell` (in the scene frame as `placement`
+    /// puts it) meets a solid in more than a face.
+    fn holds_solid(&self, placement: &Placement, cell: &SceneCell) -> bool {
+        let scene = self.scene;
+        let scene_from_cell =
+            Isometry3::from_parts(cell.centre.coords.into(), placement.scene_from_map.rotation);
+        let half = Vector3::repeat(cell.half - TOUCH);
+        scene
+            .objects_near(&cell.bounds.min, &cell.bounds.max)
+            .into_iter()
+            .any(|o| scene.box_meets_object(o, &scene_from_cell, &half))
+    }
+
+    /// How the block `cell` (inside the workspace and the region, as the
+    /// known placement puts it) is called as a whole.
+    fn block(&self, tree: &Octree, key: &Key, depth: u8, cell: &SceneCell) -> Block {
+        // Per placement: whether a solid comes near the block, and whether
+        // the block lies inside one (and inside the workspace, so that each
+        // of its cells votes).
+        let reach = |placement: &Placement, cell: &SceneCell| -> (bool, bool) {
+            let scene = self.scene;
+            let ws = &scene.workspace;
+            let near = scene.objects_near(&cell.bounds.min, &cell.bounds.max);
+            if near.is_empty() {
+                return (false, false);
+            }
+            let scene_from_cell =
+                Isometry3::from_parts(cell.centre.coords.into(), placement.scene_from_map.rotation);
+            let half = Vector3::repeat(cell.half);
+            let within = ws.contains(&cell.bounds.min) && ws.contains(&cell.bounds.max);
+            let inside = within
+                && near
+                    .iter()
+                    .any(|&o| scene.box_inside_object(o, &scene_from_cell, &half));
+            (true, inside)
+        };
+        let (meet, inside, needed) = match &self.voters {
+            Voters::Known => {
+                let (near, inside) = reach(&self.known, cell);
+                (usize::from(near), usize::from(inside), 1)
+            }
+            Voters::Draws { placements, needed } => {
+                placements.iter().fold((0, 0, *needed), |(m, i, n), p| {
+                    let (near, inside) = reach(p, &p.cell(tree, key, depth));
+                    (m + usize::from(near), i + usize::from(inside), n)
+                })
+            }
+        };
+        if meet < needed {
+            Block::Free
+        } else if inside >= needed {
+            Block::Occupied
+        } else {
+            Block::Split
         }
     }
 }
@@ -337,6 +443,65 @@ mod tests {
             }
         }
         assert!(occupied > 300, "{occupied}");
+    }
+
+    #[test]
+    fn a_vote_over_placements_is_each_placement_voxelised_and_counted() {
+        // A large box (whole blocks inside it), a sphere and a box by the
+        // workspace's edge (draws push their cells and blocks out), a slanted cylinder; six draws a
+        // few cells apart. Every cell's call is the count, over the draws
+        // voxelised one by one, of those that occupy it, against `needed`;
+        // the cells the known placement does not know stay unknown.
+        let (_d, s) = scene(
+            "[[object]]\nshape = \"box\"\nsize = [0.5, 0.4, 0.3]\nxyz = [-0.1, 0.0, -0.1]\n\
+             [[object]]\nshape = \"sphere\"\nradius = 0.1\nxyz = [0.41, 0.3, 0.35]\n\
+             [[object]]\nshape = \"box\"\nsize = [0.4, 0.4, 0.4]\nxyz = [0.45, -0.1, -0.25]\n\
+             [[object]]\nshape = \"cylinder\"\nradius = 0.05\nheight = 0.3\nxyz = [0.3, -0.3, 0.2]\nrpy = [0.4, 0.2, 0.0]\n",
+        );
+        let known = Isometry3::new(
+            Vector3::new(0.003, -0.006, 0.011),
+            Vector3::new(0.0, 0.0, 0.02),
+        );
+        let draws: Vec<Isometry3> = (0..6)
+            .map(|k| {
+                let f = k as f64 - 2.5;
+                known
+                    * Isometry3::new(
+                        Vector3::new(0.03 * f, -0.009 * f, 0.017 * (f * 1.7).sin()),
+                        Vector3::new(0.02 * (f * 0.9).cos(), 0.015 * f, -0.01 * f),
+                    )
+            })
+            .collect();
+        let one_by_one: Vec<Octree> = draws.iter().map(|d| voxelise_in(&s, 0.02, d)).collect();
+        let truth = voxelise_in(&s, 0.02, &known);
+        for needed in [1, 3, 6] {
+            let votes = voxelise_votes(&s, 0.02, &known, &draws, needed, &KeyBox::ALL);
+            let (mut occupied, mut split) = (0, 0);
+            for i in -26..26 {
+                for j in -26..26 {
+                    for k in -26..26 {
+                        let x = Point3::new(i as f64, j as f64, k as f64) * 0.02
+                            + Vector3::repeat(0.01);
+                        if truth.value_at(&x).is_none() {
+                            assert_eq!(votes.value_at(&x), None, "{x:?}");
+                            continue;
+                        }
+                        let count = one_by_one
+                            .iter()
+                            .filter(|t| t.value_at(&x).is_some_and(is_occupied))
+                            .count();
+                        let call = votes.value_at(&x).map(is_occupied);
+                        assert_eq!(call, Some(count >= needed), "{x:?}, needed {needed}");
+                        occupied += usize::from(count >= needed);
+                        split += usize::from(count > 0 && count < 6);
+                    }
+                }
+            }
+            assert!(occupied > 2000 && split > 500, "{occupied} {split}");
+        }
+        // Every draw the known placement: the truth, leaf for leaf.
+        let same = voxelise_votes(&s, 0.02, &known, &[known; 4], 2, &KeyBox::ALL);
+        assert_eq!(same.leaves(), truth.leaves());
     }
 
     #[test]

@@ -42,11 +42,18 @@ pub enum Method {
     /// (`experiment::run::consensus_truth`, docs/math.md §7.5). A scoring reference
     /// for `sigmap run`.
     ConsensusTruth,
+    /// Not a mapper: the registered truth blurred over draws of the
+    /// registration's told covariance, called occupied where more than a
+    /// threshold of the draws put a solid (`[registration_belief]`,
+    /// `experiment::run::registration_belief`, docs/math.md §7.5): what a
+    /// map that knows the registration's covariance and nothing else wrong
+    /// would believe. A scoring reference for `sigmap run`.
+    RegistrationBelief,
 }
 
 impl Method {
     /// Every method.
-    pub const ALL: [Method; 8] = [
+    pub const ALL: [Method; 9] = [
         Method::Blind,
         Method::Jacobian,
         Method::Unscented,
@@ -55,6 +62,7 @@ impl Method {
         Method::RayUpdateDiscrete,
         Method::RegisteredTruth,
         Method::ConsensusTruth,
+        Method::RegistrationBelief,
     ];
 
     /// Whether it builds local grids from propagated beams (the OPDF
@@ -64,9 +72,13 @@ impl Method {
     }
 
     /// Whether it is a scoring reference made from a simulated run's truth
-    /// (`registered_truth`, `consensus_truth`), not a map built from scans.
+    /// (`registered_truth`, `consensus_truth`, `registration_belief`), not a
+    /// map built from scans.
     pub fn is_truth(self) -> bool {
-        matches!(self, Method::RegisteredTruth | Method::ConsensusTruth)
+        matches!(
+            self,
+            Method::RegisteredTruth | Method::ConsensusTruth | Method::RegistrationBelief
+        )
     }
 
     /// Whether it is OctoMap's ray update (either insertion).
@@ -85,6 +97,7 @@ impl Method {
             Method::RayUpdateDiscrete => "ray_update_discrete",
             Method::RegisteredTruth => "registered_truth",
             Method::ConsensusTruth => "consensus_truth",
+            Method::RegistrationBelief => "registration_belief",
         }
     }
 }
@@ -136,7 +149,8 @@ pub fn propagator(
         Method::RayUpdate
         | Method::RayUpdateDiscrete
         | Method::RegisteredTruth
-        | Method::ConsensusTruth => None,
+        | Method::ConsensusTruth
+        | Method::RegistrationBelief => None,
     }
 }
 

@@ -29,6 +29,9 @@ pub enum Stream {
     },
     /// The sub-voxel offset of the map's grid (evaluation, not an error).
     GridOffset,
+    /// The registration errors the reference `registration_belief` blurs
+    /// the registered truth over (evaluation, not an error of the scans).
+    RegistrationBelief,
 }
 
 impl Stream {
@@ -40,6 +43,7 @@ impl Stream {
                 (2 << 62) | ((viewpoint as u64) << 32) | block as u64
             }
             Stream::GridOffset => 3 << 62,
+            Stream::RegistrationBelief => (3 << 62) | 1,
         }
     }
 }

@@ -7,6 +7,7 @@ use crate::eval::observable::observable_cells;
 use crate::eval::scores::{score_map, MapScores};
 use crate::experiment::run::consensus_truth::consensus_truth;
 use crate::experiment::run::external::MapperRun;
+use crate::experiment::run::registration_belief::registration_belief;
 use crate::experiment::study::metrics::Measured;
 use crate::experiment::{simulate, Experiment, RunMethod, RunTruth, SimulatedRun};
 use crate::geometry::{Isometry3, Matrix3, Vector3};
@@ -69,7 +70,8 @@ pub fn registered_truth(
 }
 
 /// The scoring reference `method` of `run` ([`Method::is_truth`]) over the
-/// finest cells of `region`: [`registered_truth`] or [`consensus_truth`];
+/// finest cells of `region`: [`registered_truth`], [`consensus_truth`] or
+/// [`registration_belief`];
 /// `None` for a method that maps the scans.
 pub fn truth_reference(
     method: Method,
@@ -85,6 +87,9 @@ pub fn truth_reference(
         )),
         Method::ConsensusTruth => Some(consensus_truth(
             experiment, &run.scans, &run.truth, offset, region,
+        )),
+        Method::RegistrationBelief => Some(registration_belief(
+            experiment, &run.truth, run.seed, offset, region,
         )),
         _ => None,
     }

@@ -2,6 +2,7 @@
 //! error profile, viewpoints, seed). Paths are relative to the experiment file.
 
 use crate::error::{read_toml_with, Error, Result};
+use crate::experiment::run::registration_belief::BeliefSettings;
 use crate::experiment::study::run_method::RunMethod;
 use crate::geometry::{Isometry3, Pose, Vector3};
 use crate::mapping::scan::{check_sample_budget, Layouts, MapperView};
@@ -180,6 +181,8 @@ pub struct Experiment {
     /// The profile `[believed]` names, if it names one: the errors the maps
     /// are told instead of `profile`'s.
     believed_profile: Option<ErrorProfile>,
+    /// How the reference `registration_belief` is drawn and called.
+    registration_belief: BeliefSettings,
     /// The viewpoints, resolved to joint configurations.
     viewpoints: Vec<Viewpoint>,
     /// The sweep axes (runs are their cartesian product times the seeds).

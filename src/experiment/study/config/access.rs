@@ -146,6 +146,12 @@ impl Experiment {
         self.believed_profile.as_ref().unwrap_or(&self.profile)
     }
 
+    /// How the reference `registration_belief` is drawn and called
+    /// (`[registration_belief]`).
+    pub fn registration_belief(&self) -> BeliefSettings {
+        self.registration_belief
+    }
+
     /// The viewpoints, resolved to joint configurations.
     pub fn viewpoints(&self) -> &[Viewpoint] {
         &self.viewpoints

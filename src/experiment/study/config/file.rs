@@ -34,6 +34,10 @@ pub(super) struct ExperimentFile {
     /// `[believed]`: what the maps are told of the profile's errors.
     #[serde(default)]
     pub(super) believed: crate::sim::believed::BelievedErrors,
+    /// `[registration_belief]`: how the reference `registration_belief` is
+    /// drawn and called.
+    #[serde(default)]
+    pub(super) registration_belief: crate::experiment::run::registration_belief::BeliefSettings,
     /// `[unscented]`: the scaled sigma-point set instead of the paper's.
     pub(super) unscented: Option<ScaledSetSpec>,
     pub(super) seeds: Option<SeedsSpec>,

@@ -488,6 +488,7 @@ impl Experiment {
         )?;
         let (map, samples_over_budget) =
             map_settings(&file, overrides, scanner.directions().len()).map_err(&bad)?;
+        let registration_belief = file.registration_belief.checked().map_err(&bad)?;
         let sigma_set = match &file.unscented {
             Some(spec) => SigmaSet::scaled(spec.alpha, spec.beta, spec.kappa)
                 .map_err(|e| bad(format!("[unscented] {e}")))?,
@@ -539,6 +540,7 @@ impl Experiment {
             scanner,
             believed,
             believed_profile,
+            registration_belief,
             profile,
             viewpoints: Vec::new(),
             sweep: file.sweeps,

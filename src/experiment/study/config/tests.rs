@@ -298,6 +298,13 @@ fn a_minimal_file_takes_the_documented_defaults() {
         ([0.0; 3], [0.0; 3])
     );
     assert!(file.viewpoints.is_empty() && file.sweeps.is_empty());
+    assert_eq!(
+        file.registration_belief,
+        crate::experiment::run::registration_belief::BeliefSettings {
+            threshold: 0.5,
+            draws: 32
+        }
+    );
     assert_eq!(file.sensor.vertical_fov_deg, 0.0);
     assert_eq!(file.sensor.vertical_step_deg, None);
     // The scaled sigma-point set's defaults: β = 2, κ = 0.
