@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{portable_experiment, refused};
+use common::{portable_experiment, quickstart_run_refused, refused};
 use sigmap::experiment::run::runner::run_seed;
 use sigmap::experiment::{simulate, Experiment};
 
@@ -357,27 +357,7 @@ fn a_believed_profile_is_checked_and_fingerprinted() {
     use sigmap::experiment::study::journal::fingerprint;
     let dir = tempfile::tempdir().unwrap();
     let profiles = common::root().join("experiments/profiles");
-    let run_refused = |believed: &str, names: &str, says: &str| {
-        let sub = tempfile::tempdir_in(dir.path()).unwrap();
-        let path = portable_experiment(
-            "quickstart",
-            sub.path(),
-            &[("seed = 1", &format!("seed = 1\n{believed}"))],
-        );
-        let out = sub.path().join("out");
-        refused(
-            &[
-                "run",
-                path.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "-q",
-            ],
-            names,
-            says,
-        );
-        assert!(!out.exists());
-    };
+    let run_refused = quickstart_run_refused;
     run_refused(
         "believed = { profile = \"nowhere.toml\" }",
         "quickstart.toml",

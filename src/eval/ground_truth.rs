@@ -55,15 +55,13 @@ pub fn voxelise_within(
     map_from_scene: &Isometry3,
     region: &KeyBox,
 ) -> Octree {
-    let mut tree = Octree::new(resolution);
-    let voxeliser = Voxeliser {
+    Voxeliser {
         scene,
         known: Placement::new(map_from_scene),
         voters: Voters::Known,
         region: *region,
-    };
-    voxeliser.recurse(&mut tree, Key([0, 0, 0]), 0);
-    tree
+    }
+    .tree(resolution)
 }
 
 /// A vote over placements of the scene: each finest cell of `region` that
@@ -83,8 +81,7 @@ pub fn voxelise_votes(
     needed: usize,
     region: &KeyBox,
 ) -> Octree {
-    let mut tree = Octree::new(resolution);
-    let voxeliser = Voxeliser {
+    Voxeliser {
         scene,
         known: Placement::new(map_from_scene),
         voters: Voters::Draws {
@@ -92,9 +89,8 @@ pub fn voxelise_votes(
             needed,
         },
         region: *region,
-    };
-    voxeliser.recurse(&mut tree, Key([0, 0, 0]), 0);
-    tree
+    }
+    .tree(resolution)
 }
 
 /// A box of finest cells, by key, bounds included.
@@ -253,6 +249,13 @@ enum Block {
 }
 
 impl Voxeliser<'_> {
+    /// The tree at `resolution`, decided from the root down.
+    fn tree(&self, resolution: f64) -> Octree {
+        let mut tree = Octree::new(resolution);
+        self.recurse(&mut tree, Key([0, 0, 0]), 0);
+        tree
+    }
+
     fn recurse(&self, tree: &mut Octree, key: Key, depth: u8) {
         let (scene, region) = (self.scene, &self.region);
         if !region.meets(&key, depth) {

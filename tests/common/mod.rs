@@ -191,6 +191,23 @@ pub fn refused(args: &[&str], names: &str, says: &str) {
     );
 }
 
+/// `sigmap run` of the quickstart with `lines` added after its `seed = 1`
+/// is refused (one line naming `names` and `says`, exit 2) and writes no
+/// results folder.
+#[allow(dead_code)] // only the tests of an experiment file's settings
+pub fn quickstart_run_refused(lines: &str, names: &str, says: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = portable_experiment(
+        "quickstart",
+        dir.path(),
+        &[("seed = 1", &format!("seed = 1\n{lines}"))],
+    );
+    let out = dir.path().join("out");
+    let (path, out_arg) = (path.to_str().unwrap(), out.to_str().unwrap());
+    refused(&["run", path, "--out", out_arg, "-q"], names, says);
+    assert!(!out.exists());
+}
+
 /// Builds the C++ program `source` (a repository path) into `exe` with g++
 /// against Debian's liboctomap-dev.
 #[allow(dead_code)] // only the tests against liboctomap
