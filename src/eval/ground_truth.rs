@@ -69,10 +69,10 @@ pub fn voxelise_within(
 /// `needed` of `draws` put a solid in it (each draw's cell decided by the
 /// same rule, a draw whose cell centre leaves the workspace not voting for
 /// it) and free otherwise; every other cell unknown. The same tree as
-/// voxelising each draw and counting, cell by cell, in the time of one
-/// recursion over the union of the draws' surfaces: a block is decided
-/// whole when enough draws hold it inside a solid, or too few meet a solid
-/// at all (`registration_belief`, docs/math.md §7.5).
+/// voxelising each draw and counting, cell by cell, in one recursion over
+/// the union of the draws' surfaces instead of one per draw: a block is
+/// decided whole when enough draws hold it inside a solid, or too few meet
+/// a solid at all (`registration_belief`, docs/math.md §7.5).
 pub fn voxelise_votes(
     scene: &Scene,
     resolution: f64,
