@@ -1,6 +1,6 @@
 //! `sigmap ground-truth`: a scene's true occupancy as an OctoMap file.
 
-use super::{resolution_arg, GroundTruthArgs};
+use super::{resolution_arg, spinner, GroundTruthArgs};
 use crate::error::Result;
 use crate::eval::ground_truth::{cell_counts, voxelise};
 use crate::mapping::octomap_io::{check_octree_path, write_octree};
@@ -17,7 +17,9 @@ pub(crate) fn run(args: GroundTruthArgs) -> Result<()> {
     scene.check_resolution(args.resolution)?;
     scene.check_truth_region(&scene.workspace, args.resolution, "the whole workspace")?;
     let start = Instant::now();
+    let voxelising = spinner(&format!("voxelising '{}'", scene.name), false);
     let truth = voxelise(&scene, args.resolution);
+    voxelising.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     write_octree(&args.out, &truth, Clamp::OCTOMAP)?;
     let (occupied, free) = cell_counts(&truth);

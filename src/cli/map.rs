@@ -2,7 +2,7 @@
 //! method; write the OctoMap file; optionally export the rays for OctoMap.
 //! With `--scans`, map a recorded ScanGraph instead (`experiment::run::recorded`).
 
-use super::{progress_bar, resolution_arg, with_threads, MapArgs};
+use super::{progress_bar, resolution_arg, spinner, with_threads, MapArgs};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::KeyBox;
 use crate::experiment::run::recorded::{map_recorded, read_scans, RecordedOptions};
@@ -57,12 +57,19 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         write_rays(path, &view, &run.scans, &offset)?;
     }
     let start = Instant::now();
+    let computing = args.method.is_truth().then(|| {
+        let what = format!("{} over the whole workspace", args.method);
+        spinner(&what, args.run.quiet)
+    });
     let tree = match truth_reference(args.method, &experiment, &run, &offset, &KeyBox::ALL) {
         Some(tree) => tree,
         None => with_threads(args.run.threads, || {
             build_map(&view, &run.scans, args.method, resolution, &offset)
         })??,
     };
+    if let Some(spinner) = computing {
+        spinner.finish_and_clear();
+    }
     let seconds = start.elapsed().as_secs_f64();
     write_octree(&out, &tree, experiment.map().clamp())?;
     let beams: usize = run.scans.iter().map(|s| s.measurements.len()).sum();

@@ -89,6 +89,22 @@ pub(crate) fn progress_bar(len: usize, what: &str, quiet: bool) -> ProgressBar {
     bar
 }
 
+/// A spinner with the time elapsed, for a step whose length is not known
+/// ahead (a truth over a whole workspace); hidden when `quiet` or when
+/// stderr is not a terminal.
+pub(crate) fn spinner(what: &str, quiet: bool) -> ProgressBar {
+    let spinner = ProgressBar::new_spinner().with_message(what.to_string());
+    if quiet || !std::io::stderr().is_terminal() {
+        spinner.set_draw_target(ProgressDrawTarget::hidden());
+        return spinner;
+    }
+    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} {elapsed_precise}") {
+        spinner.set_style(style);
+    }
+    spinner.enable_steady_tick(std::time::Duration::from_millis(250));
+    spinner
+}
+
 /// Parses the command line, runs the command, and returns the exit code.
 pub fn main() -> i32 {
     let cli = match Cli::try_parse() {
