@@ -196,6 +196,12 @@ impl Placement {
         }
     }
 
+    /// The frame of `cell` (placed by this placement) in the scene: its
+    /// centre, turned as the map is.
+    fn scene_from_cell(&self, cell: &SceneCell) -> Isometry3 {
+        Isometry3::from_parts(cell.centre.coords.into(), self.scene_from_map.rotation)
+    }
+
     /// The cell in the scene frame.
     fn cell(&self, tree: &Octree, key: &Key, depth: u8) -> SceneCell {
         let centre = self.scene_from_map * tree.center(key, depth);
@@ -316,8 +322,7 @@ impl Voxeliser<'_> {
     /// puts it) meets a solid in more than a face.
     fn holds_solid(&self, placement: &Placement, cell: &SceneCell) -> bool {
         let scene = self.scene;
-        let scene_from_cell =
-            Isometry3::from_parts(cell.centre.coords.into(), placement.scene_from_map.rotation);
+        let scene_from_cell = placement.scene_from_cell(cell);
         let half = Vector3::repeat(cell.half - TOUCH);
         scene
             .objects_near(&cell.bounds.min, &cell.bounds.max)
@@ -338,8 +343,7 @@ impl Voxeliser<'_> {
             if near.is_empty() {
                 return (false, false);
             }
-            let scene_from_cell =
-                Isometry3::from_parts(cell.centre.coords.into(), placement.scene_from_map.rotation);
+            let scene_from_cell = placement.scene_from_cell(cell);
             let half = Vector3::repeat(cell.half);
             let within = ws.contains(&cell.bounds.min) && ws.contains(&cell.bounds.max);
             let inside = within
@@ -354,10 +358,13 @@ impl Voxeliser<'_> {
                 (usize::from(near), usize::from(inside), 1)
             }
             Voters::Draws { placements, needed } => {
-                placements.iter().fold((0, 0, *needed), |(m, i, n), p| {
-                    let (near, inside) = reach(p, &p.cell(tree, key, depth));
-                    (m + usize::from(near), i + usize::from(inside), n)
-                })
+                let (mut meet, mut inside) = (0, 0);
+                for p in placements {
+                    let (near, holds) = reach(p, &p.cell(tree, key, depth));
+                    meet += usize::from(near);
+                    inside += usize::from(holds);
+                }
+                (meet, inside, *needed)
             }
         };
         if meet < needed {

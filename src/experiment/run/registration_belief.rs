@@ -20,7 +20,6 @@ use crate::geometry::Vector3;
 use crate::mapping::octree::Octree;
 use crate::sim::streams::{Stream, Streams};
 use crate::sim::truth::draw_pose;
-use crate::uncertainty::UncertainPose;
 use serde::Deserialize;
 
 /// The most draws a belief takes: each costs about one voxelisation of the
@@ -100,12 +99,8 @@ pub fn registration_belief(
 ) -> Octree {
     let settings = experiment.registration_belief();
     let registered = registered_placement(experiment, truth, offset);
-    let nominal = experiment.world_from_scene();
-    let told = UncertainPose {
-        mean: nominal,
-        covariance: experiment.believed_profile().world_from_scene
-            * experiment.believed().pose_variance(),
-    };
+    let told = experiment.told_world_from_scene();
+    let nominal = told.mean;
     let mut rng = Streams::new(seed).rng(Stream::RegistrationBelief);
     let draws: Vec<_> = (0..settings.draws)
         .map(|_| {

@@ -56,7 +56,7 @@ pub fn simulate(
     // covariances times the factor's square ([believed]).
     let told = experiment.believed_profile();
     let told_variance = experiment.believed().pose_variance();
-    let told_world_from_scene = told.world_from_scene * told_variance;
+    let told_world_from_scene = experiment.told_world_from_scene();
     let told_robot_from_camera = told.robot_from_camera * told_variance;
     let true_world_from_scene = draw_pose(&world_from_scene, &mut run_rng).to_isometry();
     let true_robot_from_camera = draw_pose(&robot_from_camera, &mut run_rng).to_isometry();
@@ -107,10 +107,7 @@ pub fn simulate(
             viewpoint: index,
             joints: viewpoint.joints.clone(),
             chain: NominalChain {
-                world_from_scene: UncertainPose {
-                    mean: world_from_scene.mean,
-                    covariance: told_world_from_scene,
-                },
+                world_from_scene: told_world_from_scene,
                 world_from_robot: UncertainPose {
                     mean: arm.believed.mean,
                     covariance: told_arm * told_variance,

@@ -152,6 +152,16 @@ impl Experiment {
         self.registration_belief
     }
 
+    /// The scene registration as the maps are told it: nominal T_sw with the
+    /// believed profile's covariance times `[believed] pose_sigma²`, what
+    /// every scan states and `registration_belief` draws from.
+    pub fn told_world_from_scene(&self) -> crate::uncertainty::UncertainPose {
+        crate::uncertainty::UncertainPose {
+            mean: self.world_from_scene,
+            covariance: self.believed_profile().world_from_scene * self.believed.pose_variance(),
+        }
+    }
+
     /// The viewpoints, resolved to joint configurations.
     pub fn viewpoints(&self) -> &[Viewpoint] {
         &self.viewpoints
