@@ -238,6 +238,23 @@ fn oversized_and_repeated_lists_are_refused_before_any_work() {
         "p.toml",
         "sigma0 = 1e300 must be between 0 and 1",
     );
+    // A negative scale error of the frames.
+    let profile = edited(
+        "experiments/profiles/collaborative.toml",
+        &d.join("q.toml"),
+        &[("sigma0 = 0.001", "sigma0 = 0.001\nscale_sigma = -0.01")],
+    );
+    let e = experiment_with(
+        d,
+        "negative_scale",
+        "experiments/profiles/collaborative.toml",
+        &profile,
+    );
+    refused(
+        &["run", e.to_str().unwrap(), "--out", o],
+        "q.toml",
+        "scale_sigma = -1e-2 must be between 0 and 0.25",
+    );
 }
 
 /// Workspaces whose truth, or whose observable mask, no map could hold.

@@ -29,8 +29,27 @@ pub fn measured_ranges(
     pooled_ranges(view, layout, scan, view.settings.beam_pooling)
 }
 
-/// [`measured_ranges`] with `pooling`.
+/// [`measured_ranges`] with `pooling`; each range's σ holds the frame's
+/// scale error besides its own noise (docs/math.md §4.5): pooling averages
+/// the beams' own noise, not the scale they share, so the scale is added
+/// after it.
 fn pooled_ranges(
+    view: &MapperView,
+    layout: &BeamLayout,
+    scan: &Scan,
+    pooling: Pooling,
+) -> Result<Vec<Pooled>, String> {
+    let mut pooled = own_noise_ranges(view, layout, scan, pooling)?;
+    if view.range.scale_sigma > 0.0 {
+        for p in pooled.iter_mut().flatten() {
+            p.sigma = view.range.with_frame_scale(p.sigma, p.range);
+        }
+    }
+    Ok(pooled)
+}
+
+/// [`pooled_ranges`] with each range's own noise alone.
+fn own_noise_ranges(
     view: &MapperView,
     layout: &BeamLayout,
     scan: &Scan,
@@ -141,7 +160,10 @@ pub fn hit_point(range: &RangeModel, d: &Vector3, p: &PooledRange) -> UncertainP
 
 /// A hit's measured point from its raw range (see [`measured_ranges`]).
 pub(crate) fn raw_point(view: &MapperView, m: &Measurement, d: &Vector3) -> Option<UncertainPoint> {
-    hit_range(m).map(|r| camera_point(&view.range, d, r, view.range.sigma(d, r)))
+    hit_range(m).map(|r| {
+        let sigma = view.range.with_frame_scale(view.range.sigma(d, r), r);
+        camera_point(&view.range, d, r, sigma)
+    })
 }
 
 /// The camera-frame point at range `r` along `d`, range noise `sigma`.

@@ -22,8 +22,8 @@ pub struct BelievedErrors {
     /// file); `None`: the experiment's own, the one the simulator draws.
     #[serde(skip_serializing)]
     pub profile: Option<PathBuf>,
-    /// The range σ (`σ0`, `k`, `k2`) and the angular σ the maps are
-    /// calibrated with, times the believed profile's.
+    /// The range σ (`σ0`, `k`, `k2`, the frame's `scale_sigma`) and the
+    /// angular σ the maps are calibrated with, times the believed profile's.
     pub sensor_sigma: f64,
     /// Every pose σ the scans state (the arm's, the hand-eye's and the
     /// registration's), times the believed profile's: each stated
@@ -75,8 +75,9 @@ impl BelievedErrors {
         ))
     }
 
-    /// The range model the maps are calibrated with: `range`'s σ terms and
-    /// angular σ times `sensor_sigma`; its dropout and axis unchanged.
+    /// The range model the maps are calibrated with: `range`'s σ terms (the
+    /// frame's scale σ with them) and angular σ times `sensor_sigma`; its
+    /// dropout and axis unchanged.
     pub fn range(&self, range: &RangeModel) -> RangeModel {
         let f = self.sensor_sigma;
         RangeModel {
@@ -84,6 +85,7 @@ impl BelievedErrors {
             k: range.k * f,
             k2: range.k2 * f,
             angular_sigma: range.angular_sigma * f,
+            scale_sigma: range.scale_sigma * f,
             ..*range
         }
     }
@@ -129,6 +131,11 @@ mod tests {
             assert!((told - 0.5 * drawn).abs() < 1e-15, "{told} {drawn}");
         }
         assert_eq!(believed.angular_sigma, 0.5 * profile.range.angular_sigma);
+        let scaled = RangeModel {
+            scale_sigma: 0.01,
+            ..profile.range
+        };
+        assert_eq!(half.range(&scaled).scale_sigma, 0.005);
         assert_eq!(believed.dropout, profile.range.dropout);
         assert_eq!(
             BelievedErrors::default().range(&profile.range),

@@ -53,7 +53,8 @@ fn jitter(d: &Vector3, a: f64, b: f64) -> Vector3 {
 }
 
 /// Casts every beam of `scanner` from the true `scene_from_camera`, applying
-/// the range model. Beams run in parallel in blocks of [`BEAM_BLOCK`], each
+/// the range model (the frame's scale error, [`frame_scale`], to every
+/// range). Beams run in parallel in blocks of [`BEAM_BLOCK`], each
 /// block with its own random stream, so the result does not depend on the
 /// thread count. Every beam consumes four normals/uniforms whatever happens,
 /// so changing one error level keeps the other draws (common random numbers).
@@ -81,6 +82,7 @@ pub fn cast_beams(
     let mut truth = vec![none; n];
     let origin = Point3::from(scene_from_camera.translation.vector);
     let rotation = scene_from_camera.rotation.to_rotation_matrix();
+    let scale = frame_scale(range, streams, viewpoint);
     measurements
         .par_chunks_mut(BEAM_BLOCK)
         .zip(truth.par_chunks_mut(BEAM_BLOCK))
@@ -120,12 +122,25 @@ pub fn cast_beams(
                 } else {
                     Measurement {
                         status: BeamStatus::Hit,
-                        range: toi + range.sigma(d, toi) * noise,
+                        range: toi * scale + range.sigma(d, toi) * noise,
                     }
                 };
             }
         });
     (measurements, truth)
+}
+
+/// The factor `1 + s`, `s ~ N(0, scale_sigma²)`, by which every range of
+/// `viewpoint`'s frame is measured too long (docs/math.md §4.5): drawn from
+/// the viewpoint's own stream, and exactly 1 without a scale error.
+pub fn frame_scale(range: &RangeModel, streams: &Streams, viewpoint: u32) -> f64 {
+    if range.scale_sigma == 0.0 {
+        return 1.0;
+    }
+    let s: f64 = streams
+        .rng(Stream::FrameScale(viewpoint))
+        .sample(StandardNormal);
+    1.0 + range.scale_sigma * s
 }
 
 #[cfg(test)]
@@ -222,6 +237,7 @@ mod tests {
             k2: 0.004,
             angular_sigma: 0.0,
             dropout: 0.1,
+            scale_sigma: 0.0,
             along: RangeAxis::Ray,
         };
         let (m, t) = cast_beams(
@@ -324,6 +340,61 @@ mod tests {
                 "{name}: depth variance {var} of the model's over {n} pixels"
             );
         }
+    }
+
+    /// Every range of a frame is `1 + s` times the true one, one `s` per
+    /// viewpoint: over 400 viewpoints `s / s_σ` has mean 0 and variance 1
+    /// (within 5 standard errors), the same seed draws the same `s`, and
+    /// a profile without a scale error measures exactly as before.
+    #[test]
+    fn a_frames_ranges_share_one_scale_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = sphere_scene(dir.path());
+        let scanner = raster(20.0, 2.0);
+        let model = RangeModel {
+            scale_sigma: 0.02,
+            ..RangeModel::NOISELESS
+        };
+        let streams = Streams::new(3);
+        let mut scales = Vec::new();
+        for viewpoint in 0..400 {
+            let (m, t) = cast_beams(
+                &scene,
+                &scanner,
+                &model,
+                &Isometry3::identity(),
+                &streams,
+                viewpoint,
+            );
+            let ratios: Vec<f64> = m
+                .iter()
+                .zip(&t)
+                .filter(|(m, _)| m.status == BeamStatus::Hit)
+                .map(|(m, t)| m.range / t.range)
+                .collect();
+            assert!(ratios.len() > 50, "{} hits", ratios.len());
+            let scale = frame_scale(&model, &streams, viewpoint);
+            for ratio in ratios {
+                assert!(
+                    (ratio - scale).abs() < 1e-12,
+                    "{ratio} in a frame of {scale}"
+                );
+            }
+            scales.push((scale - 1.0) / model.scale_sigma);
+        }
+        let n = scales.len() as f64;
+        let mean = scales.iter().sum::<f64>() / n;
+        let var = scales.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        assert!(mean.abs() < 5.0 / n.sqrt(), "mean {mean}");
+        assert!(
+            (var - 1.0).abs() < 5.0 * (2.0 / (n - 1.0)).sqrt(),
+            "var {var}"
+        );
+        assert_eq!(
+            frame_scale(&model, &Streams::new(3), 7),
+            frame_scale(&model, &streams, 7)
+        );
+        assert_eq!(frame_scale(&RangeModel::NOISELESS, &streams, 7), 1.0);
     }
 
     #[test]

@@ -27,6 +27,9 @@ pub enum Stream {
         /// The block's index within the viewpoint's beams.
         block: u32,
     },
+    /// The range scale error of one viewpoint's frame
+    /// ([`RangeModel::scale_sigma`](crate::uncertainty::RangeModel)).
+    FrameScale(u32),
     /// The sub-voxel offset of the map's grid (evaluation, not an error).
     GridOffset,
     /// The registration errors the reference `registration_belief` blurs
@@ -44,6 +47,7 @@ impl Stream {
             }
             Stream::GridOffset => 3 << 62,
             Stream::RegistrationBelief => (3 << 62) | 1,
+            Stream::FrameScale(v) => (3 << 62) | (1 << 32) | v as u64,
         }
     }
 }

@@ -7,8 +7,10 @@ use crate::geometry::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// Gaussian range error `σ(r) = σ0 + k r + k2 r²` (or a depth camera's
-/// `σ(z)` of the depth, [`RangeAxis::Depth`]), optional angular jitter of
-/// the true beam direction, optional dropout.
+/// `σ(z)` of the depth, [`RangeAxis::Depth`]), independent from beam to
+/// beam; an optional scale error shared by every beam of one frame (one
+/// viewpoint's scan); optional angular jitter of the true beam direction,
+/// optional dropout.
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct RangeModel {
@@ -29,6 +31,12 @@ pub struct RangeModel {
     /// Probability that a beam that hits returns nothing.
     #[serde(default)]
     pub dropout: f64,
+    /// Standard deviation of a scale error shared by every beam of a frame
+    /// (relative: 0.01 is 1%): each viewpoint's scan draws one `s` and
+    /// measures every range `(1 + s)` times too long, as a depth camera's
+    /// depth scale drifts with its temperature (docs/math.md §4.5).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub scale_sigma: f64,
     /// What `σ0 + k x + k2 x²` is the error of: the range along the beam
     /// (the default) or a depth camera's depth along its optical axis.
     #[serde(default, skip_serializing_if = "RangeAxis::is_ray")]
@@ -56,6 +64,14 @@ impl RangeAxis {
     }
 }
 
+/// The largest [`RangeModel::scale_sigma`] a profile may give.
+pub const MAX_SCALE_SIGMA: f64 = 0.25;
+
+/// Whether `v` is zero (what sigmap leaves out when it writes a profile).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
 /// The least cosine between a depth camera's beam and its optical axis
 /// (85°): a pinhole's field of view stays well inside it, and beyond it the
 /// depth's error along the ray, `σ(z) / cos θ`, says nothing.
@@ -70,6 +86,7 @@ impl RangeModel {
         k2: 0.0,
         angular_sigma: 0.0,
         dropout: 0.0,
+        scale_sigma: 0.0,
         along: RangeAxis::Ray,
     };
 
@@ -83,6 +100,8 @@ impl RangeModel {
             ("k", self.k, 1.0),
             ("k2", self.k2, 1.0),
             ("angular_sigma", self.angular_sigma, 0.5),
+            // A quarter of every range: no depth sensor is that far off.
+            ("scale_sigma", self.scale_sigma, MAX_SCALE_SIGMA),
         ] {
             if !value.is_finite() || !(0.0..=limit).contains(&value) {
                 return Err(format!(
@@ -111,6 +130,27 @@ impl RangeModel {
                 let cos = direction.z;
                 self.polynomial(r * cos) / cos
             }
+        }
+    }
+
+    /// The standard deviation, at range `r`, of the frame's shared scale
+    /// error: `s_σ r` (the scale is the same along the ray and the depth).
+    #[inline]
+    pub fn frame_sigma(&self, r: f64) -> f64 {
+        self.scale_sigma * r
+    }
+
+    /// A range's whole standard deviation as one beam sees it: its own
+    /// noise σ (of the pooled range, for a pooled beam) and the frame's
+    /// scale error, `√(σ² + (s_σ r)²)`. The scale is shared by the frame's
+    /// beams: pooling them averages their own noise, not it.
+    #[inline]
+    pub fn with_frame_scale(&self, sigma: f64, r: f64) -> f64 {
+        if self.scale_sigma == 0.0 {
+            // Without a scale error the σ is the beam's own, to the bit.
+            sigma
+        } else {
+            sigma.hypot(self.frame_sigma(r))
         }
     }
 
@@ -193,6 +233,21 @@ mod tests {
             let message = RangeModel { k2, ..model }.check().unwrap_err();
             assert!(message.contains("k2"), "{message}");
         }
+        for scale_sigma in [-1e-3, 0.3, f64::NAN, f64::INFINITY] {
+            let message = RangeModel {
+                scale_sigma,
+                ..model
+            }
+            .check()
+            .unwrap_err();
+            assert!(message.contains("scale_sigma"), "{message}");
+        }
+        assert!(RangeModel {
+            scale_sigma: MAX_SCALE_SIGMA,
+            ..model
+        }
+        .check()
+        .is_ok());
     }
 
     /// A depth camera's σ grows as the range squared; without `k2` the
@@ -277,6 +332,14 @@ mod tests {
         let ray = read("sigma0 = 0.001").unwrap();
         assert_eq!(ray.along, RangeAxis::Ray);
         assert!(!toml::to_string(&ray).unwrap().contains("along"));
+        // The frame's scale error likewise: absent, none, and not written.
+        assert_eq!(ray.scale_sigma, 0.0);
+        assert!(!toml::to_string(&ray).unwrap().contains("scale"));
+        let scaled = read("sigma0 = 0.001\nscale_sigma = 0.01").unwrap();
+        assert_eq!(scaled.scale_sigma, 0.01);
+        assert!(toml::to_string(&scaled)
+            .unwrap()
+            .contains("scale_sigma = 0.01"));
         let message = read("sigma0 = 0.001\nalong = \"optical\"").unwrap_err();
         assert!(message.to_string().contains("ray"), "{message}");
     }

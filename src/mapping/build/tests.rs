@@ -220,6 +220,43 @@ fn maps_draw_pooled_beams_without_the_slide_and_the_nees_keeps_it() {
 }
 
 #[test]
+fn maps_draw_a_raw_beam_with_its_own_noise_and_its_frames_scale() {
+    // Unpooled, with the chain exact (blind), a beam's σ along its line is
+    // its range noise and the frame's scale error: √(σ(r)² + (s_σ r)²).
+    let mut experiment = quickstart();
+    experiment.map_mut().pool_every_method(Pooling::Off);
+    experiment.profile_mut().range.scale_sigma = 0.01;
+    let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
+    let view = experiment.mapper_view();
+    let prepared =
+        PreparedScan::new(&view, &run.scans, 0, BuildExtras::default(), Method::Blind).unwrap();
+    let origin = prepared.origin.mean;
+    let range = experiment.profile().range;
+    let mut hits = 0;
+    for (k, (m, d)) in run.scans[0]
+        .measurements
+        .iter()
+        .zip(experiment.scanner().directions())
+        .enumerate()
+    {
+        let Some(BeamEnd::Hit { point, covariance }) =
+            prepared.beam_end(&view, None, k, &Vector3::zeros())
+        else {
+            continue;
+        };
+        let v = (point - origin).normalize();
+        let drawn = (v.transpose() * covariance * v)[(0, 0)].sqrt();
+        let expected = range.sigma(d, m.range).hypot(0.01 * m.range);
+        assert!(
+            (drawn - expected).abs() <= 1e-9 * expected,
+            "beam {k}: σ {drawn} drawn, {expected} expected"
+        );
+        hits += 1;
+    }
+    assert!(hits > 1000, "{hits} hits");
+}
+
+#[test]
 fn the_ray_update_ends_its_rays_at_the_pooled_points() {
     let mut experiment = quickstart();
     let run = crate::experiment::simulate(&experiment, 1, |_| {}).unwrap();
