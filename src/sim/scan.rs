@@ -29,6 +29,9 @@ pub struct BeamTruth {
 pub struct ScanTruth {
     /// The true `scene_from_camera`.
     pub scene_from_camera: Isometry3,
+    /// The frame's range scale `1 + s` ([`frame_scale`]): 1 without a
+    /// scale error.
+    pub range_scale: f64,
     /// One entry per beam.
     pub beams: Vec<BeamTruth>,
 }

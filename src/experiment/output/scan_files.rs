@@ -189,6 +189,11 @@ pub fn write_scans(dir: &Path, experiment: &Experiment, run: &SimulatedRun) -> R
             iso,
         );
     }
+    if experiment.profile().range.scale_sigma > 0.0 {
+        for (v, scan) in run.truth.scans.iter().enumerate() {
+            let _ = writeln!(truth, "viewpoint_{v:03}_range_scale = {}", scan.range_scale);
+        }
+    }
     put(&truth_dir.join("run.toml"), &truth)?;
 
     let summary_path = dir.join("viewpoints.csv");

@@ -441,6 +441,7 @@ mod tests {
     use crate::experiment::run::consensus_truth::hits_placed_by_the_nominal_chain;
     use crate::mapping::octree::DEPTH;
     use crate::mapping::pooling::Pooling;
+    use crate::mapping::scan::BeamStatus;
     use std::path::Path;
 
     /// The quickstart with only a scene-registration error (T_sw), large:
@@ -562,6 +563,14 @@ mod tests {
         for seed in 1..=12 {
             let run = simulate(&experiment, seed, |_| {}).unwrap();
             for (scan, truth) in run.scans.iter().zip(&run.truth.scans) {
+                // The truth records the scale the frame was measured with.
+                let mut ratios: Vec<f64> = (scan.measurements.iter().zip(&truth.beams))
+                    .filter(|(m, _)| m.status == BeamStatus::Hit)
+                    .map(|(m, t)| m.range / t.range)
+                    .collect();
+                ratios.sort_by(f64::total_cmp);
+                let median = ratios[ratios.len() / 2];
+                assert!((median - truth.range_scale).abs() < 1e-3);
                 let ranges = measured_ranges(&view, &experiment.scanner().layout, scan).unwrap();
                 let pooled = ranges.iter().flatten().filter(|p| p.normal.is_some());
                 assert!(pooled.count() > 1000);

@@ -4,7 +4,7 @@ use crate::error::{Error, Result};
 use crate::experiment::Experiment;
 use crate::geometry::Isometry3;
 use crate::mapping::scan::{NominalChain, Scan};
-use crate::sim::scan::{cast_beams, ScanTruth};
+use crate::sim::scan::{cast_beams, frame_scale, ScanTruth};
 use crate::sim::streams::{Stream, Streams};
 use crate::sim::truth::{arm_covariance, draw_arm, draw_pose};
 use crate::uncertainty::UncertainPose;
@@ -121,6 +121,7 @@ pub fn simulate(
         });
         true_scans.push(ScanTruth {
             scene_from_camera,
+            range_scale: frame_scale(&profile.range, &streams, index as u32),
             beams,
         });
         true_arm.push(arm.truth);
