@@ -229,6 +229,19 @@ mod tests {
             .all(|m| m.status == BeamStatus::NoReturn && m.range.is_nan()));
     }
 
+    /// `z` has mean 0 and variance 1 within 5 standard errors (mean SE
+    /// 1/√n, variance SE √(2/(n−1))).
+    fn assert_standard_normal(z: &[f64]) {
+        let n = z.len() as f64;
+        let mean = z.iter().sum::<f64>() / n;
+        let var = z.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        assert!(mean.abs() < 5.0 / n.sqrt(), "mean {mean}");
+        assert!(
+            (var - 1.0).abs() < 5.0 * (2.0 / (n - 1.0)).sqrt(),
+            "var {var}"
+        );
+    }
+
     #[test]
     fn range_noise_has_the_model_sigma() {
         let dir = tempfile::tempdir().unwrap();
@@ -258,15 +271,8 @@ mod tests {
             .filter(|((m, _), _)| m.status == BeamStatus::Hit)
             .map(|((m, t), d)| (m.range - t.range) / model.sigma(d, t.range))
             .collect();
+        assert_standard_normal(&z);
         let n = z.len() as f64;
-        let mean = z.iter().sum::<f64>() / n;
-        let var = z.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-        // 5 standard errors: mean SE 1/√n, variance SE √(2/(n−1)).
-        assert!(mean.abs() < 5.0 / n.sqrt(), "mean {mean}");
-        assert!(
-            (var - 1.0).abs() < 5.0 * (2.0 / (n - 1.0)).sqrt(),
-            "var {var}"
-        );
         let dropped = m.iter().filter(|m| m.status == BeamStatus::Dropout).count() as f64;
         let p = dropped / (dropped + n);
         assert!(
@@ -385,14 +391,7 @@ mod tests {
             }
             scales.push((scale - 1.0) / model.scale_sigma);
         }
-        let n = scales.len() as f64;
-        let mean = scales.iter().sum::<f64>() / n;
-        let var = scales.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-        assert!(mean.abs() < 5.0 / n.sqrt(), "mean {mean}");
-        assert!(
-            (var - 1.0).abs() < 5.0 * (2.0 / (n - 1.0)).sqrt(),
-            "var {var}"
-        );
+        assert_standard_normal(&scales);
         assert_eq!(
             frame_scale(&model, &Streams::new(3), 7),
             frame_scale(&model, &streams, 7)
