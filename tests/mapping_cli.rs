@@ -134,6 +134,14 @@ fn bad_map_requests_exit_2() {
         "{stderr}"
     );
     assert!(!bad.exists());
+    // --observed bounds a truth reference; a map sees what its scans see.
+    let out = sigmap(&["map", "experiments/quickstart.toml", "--observed"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--observed is for the truth references"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -362,6 +370,62 @@ fn the_truth_references_are_mapped_and_scored_as_run_scores_them() {
             "{stderr}"
         );
     }
+}
+
+/// `sigmap map --observed` computes a truth reference over the box of
+/// cells the scans observe, the map `sigmap run` writes, to the byte; in a
+/// workspace wider than the scans reach that is not the whole workspace's.
+#[test]
+fn a_truth_over_the_observed_cells_is_the_map_run_writes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let r = common::root();
+    let scene = std::fs::read_to_string(r.join("scenes/tabletop.toml"))
+        .unwrap()
+        .replace("meshes/", &format!("{}/scenes/meshes/", r.display()))
+        .replace("min = [-0.4, -0.4, -0.04]", "min = [-3.0, -3.0, -0.04]")
+        .replace("max = [0.4, 0.4, 0.36]", "max = [3.0, 3.0, 2.5]");
+    let scene_path = d.join("wide.toml");
+    std::fs::write(&scene_path, scene).unwrap();
+    let file = common::portable_experiment(
+        "quickstart",
+        d,
+        &[
+            (
+                &format!("\"{}/scenes/tabletop.toml\"", r.display()),
+                &format!("\"{}\"", scene_path.display()),
+            ),
+            ("resolution = 0.01", "resolution = 0.02"),
+            ("seeds = [1, 2, 3]", "seeds = [2]"),
+            (
+                "methods = [\"blind\", \"unscented\", \"ray_update\"]",
+                "methods = [\"registered_truth\"]",
+            ),
+        ],
+    );
+    let results = d.join("results");
+    common::ok(common::run_into(&file, &results, &[]));
+    let map = |extra: &[&str]| {
+        let out = d.join(format!("truth{}.bt", extra.len()));
+        let e = file.to_str().unwrap();
+        let args = [
+            "map",
+            e,
+            "--method",
+            "registered_truth",
+            "--seed",
+            "2",
+            "-q",
+        ];
+        sigmap_ok(&[&args[..], extra, &["--out", out.to_str().unwrap()]].concat());
+        std::fs::read(out).unwrap()
+    };
+    let written = std::fs::read(results.join("map_registered_truth.bt")).unwrap();
+    assert!(map(&["--observed"]) == written, "not the map run wrote");
+    assert!(
+        map(&[]) != written,
+        "the whole workspace is not the observed box"
+    );
 }
 
 /// `sigmap map --method M` of an experiment that pairs against further

@@ -181,6 +181,12 @@ pub(crate) struct MapArgs {
     /// and seed.
     #[arg(long, conflicts_with = "scans")]
     pub(crate) cell: Option<usize>,
+    /// With a truth reference (registered_truth, consensus_truth,
+    /// registration_belief): compute it over the box of cells the run's
+    /// scans observe, the rest unknown, as `sigmap run` computes and writes
+    /// it [default: the whole workspace].
+    #[arg(long, conflicts_with = "scans")]
+    pub(crate) observed: bool,
     /// Map file, .bt or .ot [default: results/<experiment>/map_<method>.bt;
     /// required with --scans].
     #[arg(long)]

@@ -6,7 +6,7 @@ use super::{progress_bar, resolution_arg, spinner, with_threads, MapArgs};
 use crate::error::{Error, Result};
 use crate::eval::ground_truth::KeyBox;
 use crate::experiment::run::recorded::{map_recorded, read_scans, RecordedOptions};
-use crate::experiment::run::runner::truth_reference;
+use crate::experiment::run::runner::{observable, truth_reference};
 use crate::experiment::{self, write_rays, Experiment, Overrides};
 use crate::mapping::build_map;
 use crate::mapping::method::truth_from_scans;
@@ -38,7 +38,14 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
             .join(format!("map_{}.bt", args.method))
     });
     check_octree_path(&out)?;
-    if args.method.is_truth() {
+    if args.observed && !args.method.is_truth() {
+        return Err(Error::Usage(format!(
+            "--observed is for the truth references (registered_truth, consensus_truth, \
+             registration_belief); {} maps what its scans see",
+            args.method
+        )));
+    }
+    if args.method.is_truth() && !args.observed {
         // The whole workspace's truth, as the registration (and the scans) place it.
         let scene = experiment.scene();
         scene.check_truth_region(&scene.workspace, resolution, "the whole workspace")?;
@@ -57,11 +64,19 @@ pub(crate) fn run(args: MapArgs) -> Result<()> {
         write_rays(path, &view, &run.scans, &offset)?;
     }
     let start = Instant::now();
+    // A truth over the whole workspace, or over the box of cells the scans
+    // observe (as `sigmap run` has it).
+    let (region, over) = if args.observed {
+        let cells = observable(&experiment, &run.truth.scans, &offset);
+        (KeyBox::spanning(cells), "the observed cells")
+    } else {
+        (KeyBox::ALL, "the whole workspace")
+    };
     let computing = args.method.is_truth().then(|| {
-        let what = format!("{} over the whole workspace", args.method);
+        let what = format!("{} over {over}", args.method);
         spinner(&what, args.run.quiet)
     });
-    let tree = match truth_reference(args.method, &experiment, &run, &offset, &KeyBox::ALL) {
+    let tree = match truth_reference(args.method, &experiment, &run, &offset, &region) {
         Some(tree) => tree,
         None => with_threads(args.run.threads, || {
             build_map(&view, &run.scans, args.method, resolution, &offset)
