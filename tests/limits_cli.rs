@@ -253,7 +253,7 @@ fn oversized_and_repeated_lists_are_refused_before_any_work() {
     refused(
         &["run", e.to_str().unwrap(), "--out", o],
         "q.toml",
-        "scale_sigma = -1e-2 must be between 0 and 0.25",
+        "scale_sigma = -1e-2 must be between 0 and 0.1",
     );
 }
 

@@ -64,8 +64,11 @@ impl RangeAxis {
     }
 }
 
-/// The largest [`RangeModel::scale_sigma`] a profile may give.
-pub const MAX_SCALE_SIGMA: f64 = 0.25;
+/// The largest [`RangeModel::scale_sigma`] a profile may give: a tenth of
+/// every range, far beyond any depth sensor's drift, and small enough that
+/// a frame's scale `1 + s` is never drawn at or below zero (that takes a
+/// draw ten standard deviations out).
+pub const MAX_SCALE_SIGMA: f64 = 0.1;
 
 /// Whether `v` is zero (what sigmap leaves out when it writes a profile).
 fn is_zero(v: &f64) -> bool {
@@ -100,7 +103,6 @@ impl RangeModel {
             ("k", self.k, 1.0),
             ("k2", self.k2, 1.0),
             ("angular_sigma", self.angular_sigma, 0.5),
-            // A quarter of every range: no depth sensor is that far off.
             ("scale_sigma", self.scale_sigma, MAX_SCALE_SIGMA),
         ] {
             if !value.is_finite() || !(0.0..=limit).contains(&value) {
@@ -233,7 +235,7 @@ mod tests {
             let message = RangeModel { k2, ..model }.check().unwrap_err();
             assert!(message.contains("k2"), "{message}");
         }
-        for scale_sigma in [-1e-3, 0.3, f64::NAN, f64::INFINITY] {
+        for scale_sigma in [-1e-3, 0.11, f64::NAN, f64::INFINITY] {
             let message = RangeModel {
                 scale_sigma,
                 ..model
