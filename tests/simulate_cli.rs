@@ -425,3 +425,65 @@ fn out_never_replaces_a_folder_sigmap_did_not_write() {
     assert!(scans.join("vp_000.csv").exists());
     assert_eq!(std::fs::read_dir(tmp.path()).unwrap().count(), 2);
 }
+
+/// With a frame scale error (`profiles/depth_camera_drift.toml`, 1%),
+/// truth/run.toml records each view's drawn scale, and it is the scale the
+/// view's ranges were measured with: the median of measured over true range
+/// (the depth noise at these depths is a few millimetres a pixel, so over
+/// thousands of pixels the median is within 1e-3 of it).
+#[test]
+fn the_truth_records_each_views_range_scale() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("scans");
+    let experiment = root().join("experiments/depth_camera_drift.toml");
+    let done = sigmap(&[
+        "simulate",
+        experiment.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        done.status.success(),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    let run: toml::Table = std::fs::read_to_string(out.join("truth/run.toml"))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let column = |file: &Path, name: &str| -> Vec<Option<f64>> {
+        let mut reader = csv::Reader::from_path(file).unwrap();
+        let at = reader
+            .headers()
+            .unwrap()
+            .iter()
+            .position(|h| h == name)
+            .unwrap();
+        reader
+            .records()
+            .map(|r| r.unwrap()[at].parse().ok())
+            .collect()
+    };
+    let mut scales = Vec::new();
+    for v in 0..6 {
+        let scale = run[&format!("viewpoint_{v:03}_range_scale")]
+            .as_float()
+            .unwrap();
+        let measured = column(&out.join(format!("vp_{v:03}.csv")), "range");
+        let truth = column(&out.join(format!("truth/vp_{v:03}.csv")), "true_range");
+        let mut ratios: Vec<f64> = measured
+            .iter()
+            .zip(&truth)
+            .filter_map(|(m, t)| Some((*m)? / (*t)?))
+            .collect();
+        assert!(ratios.len() > 5000, "view {v}: {} hits", ratios.len());
+        ratios.sort_by(f64::total_cmp);
+        let median = ratios[ratios.len() / 2];
+        assert!(
+            (median - scale).abs() < 1e-3,
+            "view {v}: {median} measured, {scale} recorded"
+        );
+        scales.push(scale);
+    }
+    assert!(scales.iter().any(|s| (s - 1.0).abs() > 0.005), "{scales:?}");
+}

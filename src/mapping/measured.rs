@@ -40,10 +40,8 @@ fn pooled_ranges(
     pooling: Pooling,
 ) -> Result<Vec<Pooled>, String> {
     let mut pooled = own_noise_ranges(view, layout, scan, pooling)?;
-    if view.range.scale_sigma > 0.0 {
-        for p in pooled.iter_mut().flatten() {
-            p.sigma = view.range.with_frame_scale(p.sigma, p.range);
-        }
+    for p in pooled.iter_mut().flatten() {
+        p.sigma = view.range.with_frame_scale(p.sigma, p.range);
     }
     Ok(pooled)
 }

@@ -119,4 +119,32 @@ mod tests {
         );
         assert_ne!(draw(&a, Stream::Run), draw(&Streams::new(43), Stream::Run));
     }
+
+    /// Every stream has its own id: the packed ids of the evaluation and
+    /// frame-scale streams meet neither each other nor the others'.
+    #[test]
+    fn stream_ids_do_not_collide() {
+        let streams = [
+            Stream::Run,
+            Stream::Viewpoint(0),
+            Stream::Viewpoint(1),
+            Stream::Beams {
+                viewpoint: 0,
+                block: 0,
+            },
+            Stream::Beams {
+                viewpoint: 1,
+                block: 1,
+            },
+            Stream::FrameScale(0),
+            Stream::FrameScale(1),
+            Stream::FrameScale(u32::MAX),
+            Stream::GridOffset,
+            Stream::RegistrationBelief,
+        ];
+        let mut ids: Vec<u64> = streams.iter().map(|s| s.id()).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        assert_eq!(ids.len(), streams.len());
+    }
 }
