@@ -7,7 +7,9 @@
 //! update) with its 95% t-interval, against the target of at most 2x
 //! (docs/performance.md, "Where the ray update's time goes"); then, per
 //! resolution, where one unscented map's and one ray update's time goes
-//! (their steps summed over the scans, the least of three maps).
+//! (their steps summed over the scans, the least of three maps), and how
+//! much of the target the merge's per-beam steps (its grids and their
+//! index) leave its search and apply.
 
 mod common;
 
@@ -68,6 +70,7 @@ fn main() {
             mean + half,
         );
         // Where each map's time goes: each step the least of three maps.
+        let mut totals = Vec::new();
         for (method, phases) in [
             (Method::Unscented, &Phase::ALL[..]),
             (Method::RayUpdate, &Phase::RAY_UPDATE[..]),
@@ -92,10 +95,28 @@ fn main() {
             }
             let steps: Vec<String> = phases
                 .iter()
-                .zip(least)
+                .zip(&least)
                 .map(|(phase, s)| format!("{} {:.1} ms", phase.as_str(), s * 1e3))
                 .collect();
             println!("          {method}'s steps: {}", steps.join(", "));
+            totals.push(least);
         }
+        // The merge's per-beam steps (its grids and their index, each the
+        // least of three) against the whole ray update (its fastest map):
+        // what the target leaves the search and apply.
+        let ray = rounds.iter().map(|r| r.0).fold(f64::INFINITY, f64::min);
+        let opdf = &totals[0];
+        let per_beam = opdf[0] + opdf[1];
+        let room = TARGET * ray - per_beam;
+        let left = if room >= 0.0 {
+            format!("leaves the search and apply {:.1} ms", room * 1e3)
+        } else {
+            format!("is passed by {:.1} ms before any search", -room * 1e3)
+        };
+        println!(
+            "          the grids and index alone take {:.2}x the ray update's fastest map: at most {TARGET}x {left} (the search and apply take {:.1} ms)",
+            per_beam / ray,
+            (opdf[2] + opdf[3]) * 1e3,
+        );
     }
 }
