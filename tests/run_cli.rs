@@ -208,6 +208,24 @@ fn bad_method_lists_exit_2() {
     ]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown method 'magic'"));
+    // The file is wrong whichever command reads it, also one that names
+    // its own method, and nothing is written.
+    let map = dir.path().join("m.bt");
+    let out = sigmap(&[
+        "map",
+        path.to_str().unwrap(),
+        "--method",
+        "unscented",
+        "--out",
+        map.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("x.toml") && stderr.contains("unknown method 'magic'"),
+        "{stderr}"
+    );
+    assert!(!map.exists());
 }
 
 /// `regress --consistent METHOD` passes a method whose mean one-point NEES

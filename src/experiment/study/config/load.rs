@@ -350,18 +350,22 @@ fn seeds_of(file: &ExperimentFile, seed: u64) -> std::result::Result<Vec<u64>, S
 }
 
 /// sigmap's own methods (the overrides', else the file's, else blind,
-/// unscented and ray update), none twice.
+/// unscented and ray update), none twice. The file's list is read even when
+/// overridden (`sigmap map --method`): a name in it that is no method is
+/// the file's error whatever the command.
 fn own_methods(
     file: &ExperimentFile,
     overrides: &Overrides,
 ) -> std::result::Result<Vec<Method>, String> {
-    let methods = match (&overrides.methods, &file.methods) {
+    let listed: Option<Vec<Method>> = file
+        .methods
+        .as_ref()
+        .map(|names| names.iter().map(|n| n.parse()).collect())
+        .transpose()?;
+    let methods = match (&overrides.methods, listed) {
         (Some(methods), _) => methods.clone(),
         (None, None) => vec![Method::Blind, Method::Unscented, Method::RayUpdate],
-        (None, Some(names)) => names
-            .iter()
-            .map(|n| n.parse())
-            .collect::<std::result::Result<_, _>>()?,
+        (None, Some(listed)) => listed,
     };
     if methods.is_empty() {
         return Err("`methods` is empty".into());
